@@ -1,0 +1,281 @@
+//! Request/response transactions on a half-duplex multi-drop line.
+//!
+//! One transaction: drop stale input, send the request, collect bytes until the
+//! protocol's [`Framing`] finds a reply the caller accepts, or the time-out elapses. The
+//! time-out is the wire time of request and reply at the line's baud rate plus a margin.
+//! Idempotent requests are retried; a non-idempotent one (e.g. a relative move) is sent
+//! once, and a failure says that its outcome is unknown.
+
+use super::framing::{FrameScan, Framing};
+use super::stats::{BusStats, DeviceStats};
+use crate::link::Link;
+use std::collections::BTreeMap;
+use std::sync::{Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+/// Bus master settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BusConfig {
+    /// Added to the wire time of each exchange to form the time-out (default 20 ms).
+    pub margin: Duration,
+    /// Extra attempts for idempotent requests (default 2).
+    pub retries: u32,
+}
+
+impl Default for BusConfig {
+    fn default() -> Self {
+        BusConfig { margin: Duration::from_millis(20), retries: 2 }
+    }
+}
+
+/// One request.
+#[derive(Debug, Clone, Copy)]
+pub struct Request<'a> {
+    /// Device key for the per-device counters (e.g. the module address).
+    pub device: u32,
+    /// Bytes to send.
+    pub bytes: &'a [u8],
+    /// Length of the expected reply (for the time-out).
+    pub reply_len: usize,
+    /// True if the request may be repeated safely.
+    pub idempotent: bool,
+}
+
+/// A transaction failed.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum BusError {
+    /// No acceptable reply in time.
+    #[error("device {device} on {link}: no valid reply within {timeout:?} after {attempts} attempt(s) ({corrupt} corrupt frame(s) seen)")]
+    Timeout {
+        /// Device key.
+        device: u32,
+        /// Link description.
+        link: String,
+        /// Time-out per attempt.
+        timeout: Duration,
+        /// Attempts made.
+        attempts: u32,
+        /// Corrupt frames seen meanwhile.
+        corrupt: u64,
+    },
+    /// The link failed.
+    #[error("IO error on {link}: {reason}")]
+    Io {
+        /// Link description.
+        link: String,
+        /// The OS error.
+        reason: String,
+    },
+}
+
+struct Inner {
+    link: Box<dyn Link>,
+    buf: Vec<u8>,
+}
+
+struct Counters {
+    since: Instant,
+    devices: BTreeMap<u32, DeviceStats>,
+    bytes_tx: u64,
+    bytes_rx: u64,
+    garbage: u64,
+    busy: Duration,
+}
+
+impl Counters {
+    fn new() -> Self {
+        Counters { since: Instant::now(), devices: BTreeMap::new(), bytes_tx: 0, bytes_rx: 0, garbage: 0, busy: Duration::ZERO }
+    }
+}
+
+/// The master of one line. Shared between threads (`Arc<BusMaster>`); each transaction
+/// holds the line exclusively.
+pub struct BusMaster {
+    inner: Mutex<Inner>,
+    counters: Mutex<Counters>,
+    config: BusConfig,
+    line: crate::LineSettings,
+    describe: String,
+}
+
+impl BusMaster {
+    /// A master on `link`.
+    pub fn new(link: Box<dyn Link>, config: BusConfig) -> Self {
+        let line = link.line();
+        let describe = link.describe();
+        BusMaster {
+            inner: Mutex::new(Inner { link, buf: Vec::with_capacity(256) }),
+            counters: Mutex::new(Counters::new()),
+            config,
+            line,
+            describe,
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> BusConfig {
+        self.config
+    }
+
+    /// The line's settings.
+    pub fn line(&self) -> crate::LineSettings {
+        self.line
+    }
+
+    /// Description of the link.
+    pub fn describe(&self) -> &str {
+        &self.describe
+    }
+
+    /// The time-out of one attempt exchanging `tx` and `rx` bytes.
+    pub fn timeout_for(&self, tx: usize, rx: usize) -> Duration {
+        self.line.wire_time(tx + rx) + self.config.margin
+    }
+
+    fn lock_inner(&self) -> MutexGuard<'_, Inner> {
+        self.inner.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn lock_counters(&self) -> MutexGuard<'_, Counters> {
+        self.counters.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Runs one transaction: returns the first frame `framing` finds that `accept` takes.
+    pub fn transact<F: Framing>(
+        &self,
+        request: &Request<'_>,
+        framing: &F,
+        accept: impl Fn(&F::Frame) -> bool,
+    ) -> Result<F::Frame, BusError> {
+        let attempts = if request.idempotent { 1 + self.config.retries } else { 1 };
+        let timeout = self.timeout_for(request.bytes.len(), request.reply_len);
+        let idle_gap = self.line.wire_time(3) + Duration::from_millis(2);
+        let mut guard = self.lock_inner();
+        let inner = &mut *guard;
+        let mut dev = DeviceStats { transactions: 1, ..DeviceStats::default() };
+        let (mut tx, mut rx, mut garbage) = (0u64, 0u64, 0u64);
+        let mut result = None;
+        let mut io_error = None;
+        for attempt in 0..attempts {
+            if attempt > 0 {
+                dev.retries += 1;
+            }
+            if let Err(e) = inner.link.discard_input().and_then(|_| inner.link.write_all(request.bytes)) {
+                io_error = Some(e);
+                break;
+            }
+            tx += request.bytes.len() as u64;
+            inner.buf.clear();
+            let mut deadline = Instant::now() + timeout;
+            let mut chunk = [0u8; 256];
+            'attempt: loop {
+                let now = Instant::now();
+                if now >= deadline {
+                    dev.timeouts += 1;
+                    break;
+                }
+                let n = match inner.link.read(&mut chunk, deadline - now) {
+                    Ok(n) => n,
+                    Err(e) => {
+                        io_error = Some(e);
+                        break;
+                    }
+                };
+                rx += n as u64;
+                inner.buf.extend_from_slice(chunk.get(..n).unwrap_or(&[]));
+                let mut start = 0;
+                loop {
+                    match framing.scan(inner.buf.get(start..).unwrap_or(&[])) {
+                        FrameScan::Frame { frame, len } => {
+                            start += len;
+                            if accept(&frame) {
+                                result = Some(frame);
+                                break 'attempt;
+                            }
+                            dev.unexpected_frames += 1;
+                        }
+                        FrameScan::Incomplete => break,
+                        FrameScan::Skip { corrupt } => {
+                            start += 1;
+                            if corrupt {
+                                dev.corrupt_frames += 1;
+                                // The reply was damaged: retry as soon as the line is idle.
+                                deadline = deadline.min(Instant::now() + idle_gap);
+                            } else {
+                                garbage += 1;
+                            }
+                        }
+                    }
+                }
+                inner.buf.drain(..start.min(inner.buf.len()));
+            }
+            if result.is_some() || io_error.is_some() {
+                break;
+            }
+        }
+        drop(guard);
+        if result.is_some() {
+            dev.ok = 1;
+        } else {
+            dev.failures = 1;
+        }
+        let busy = self.line.wire_time(usize::try_from(tx + rx).unwrap_or(usize::MAX));
+        {
+            let mut c = self.lock_counters();
+            let d = c.devices.entry(request.device).or_default();
+            add(d, &dev);
+            c.bytes_tx += tx;
+            c.bytes_rx += rx;
+            c.garbage += garbage;
+            c.busy += busy;
+        }
+        if let Some(e) = io_error {
+            return Err(BusError::Io { link: self.describe.clone(), reason: e.to_string() });
+        }
+        result.ok_or(BusError::Timeout {
+            device: request.device,
+            link: self.describe.clone(),
+            timeout,
+            attempts: 1 + u32::try_from(dev.retries).unwrap_or(0),
+            corrupt: dev.corrupt_frames,
+        })
+    }
+
+    /// Statistics since creation or the last [`BusMaster::reset_stats`].
+    pub fn stats(&self) -> BusStats {
+        let c = self.lock_counters();
+        let mut totals = DeviceStats::default();
+        for d in c.devices.values() {
+            add(&mut totals, d);
+        }
+        BusStats {
+            window: c.since.elapsed(),
+            totals,
+            bytes_tx: c.bytes_tx,
+            bytes_rx: c.bytes_rx,
+            garbage_bytes: c.garbage,
+            wire_busy: c.busy,
+            baud: self.line.baud,
+        }
+    }
+
+    /// Counters of one device.
+    pub fn device_stats(&self, device: u32) -> DeviceStats {
+        self.lock_counters().devices.get(&device).copied().unwrap_or_default()
+    }
+
+    /// Restarts the statistics window.
+    pub fn reset_stats(&self) {
+        *self.lock_counters() = Counters::new();
+    }
+}
+
+fn add(to: &mut DeviceStats, d: &DeviceStats) {
+    to.transactions += d.transactions;
+    to.ok += d.ok;
+    to.timeouts += d.timeouts;
+    to.retries += d.retries;
+    to.corrupt_frames += d.corrupt_frames;
+    to.unexpected_frames += d.unexpected_frames;
+    to.failures += d.failures;
+}

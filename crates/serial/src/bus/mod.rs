@@ -1,0 +1,6 @@
+//! The half-duplex bus master and its helpers.
+
+pub mod framing;
+pub mod master;
+pub mod poller;
+pub mod stats;

@@ -1,0 +1,30 @@
+//! # motus-serial — serial lines and the half-duplex bus master
+//!
+//! * [`Link`]: the one seam for byte IO. [`SerialLink`] opens real ports (RS-232, RS-485
+//!   adapters, USB-serial) and the slave side of a pseudo-terminal; [`PtyLink`] is the
+//!   master side a simulator serves (it creates the pty and a symlink to it).
+//! * Decorators that work on any link: [`FaultInjector`] (drop, corrupt), [`Paced`]
+//!   (bytes leave at the real baud rate), [`Traced`] (hex dumps to `tracing`).
+//! * [`BusMaster`]: request/response transactions on a multi-drop line, with time-outs
+//!   from the baud rate, retries, resynchronisation, per-device counters, exclusive
+//!   access, a [`Poller`] for periodic polling and keep-alive, and [`BusStats`]
+//!   (transactions/s, line utilisation).
+//! * [`DeviceUri`]: `scheme:///dev/ttyUSB0?addr=3&baud=9600` names a device on a line.
+
+#![forbid(unsafe_code)]
+
+mod bus;
+mod link;
+mod uri;
+
+pub use bus::framing::{FrameScan, Framing};
+pub use bus::master::{BusConfig, BusError, BusMaster, Request};
+pub use bus::poller::{Poller, PollerHandle};
+pub use bus::stats::{BusStats, DeviceStats};
+pub use link::fault::{FaultConfig, FaultInjector, FaultStats};
+pub use link::paced::{sleep_until, Paced};
+pub use link::pty::PtyLink;
+pub use link::serial_port::SerialLink;
+pub use link::trace::Traced;
+pub use link::{LineSettings, Link};
+pub use uri::{DeviceUri, UriError};

@@ -1,0 +1,88 @@
+//! The byte-IO seam and its implementations.
+
+pub mod fault;
+pub mod paced;
+pub mod pty;
+pub mod serial_port;
+pub mod trace;
+
+use std::io;
+use std::time::Duration;
+
+/// Framing of characters on the line: the wire time of a byte.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LineSettings {
+    /// Bits per second.
+    pub baud: u32,
+    /// Bits per character on the wire: start + data + parity + stop (10 for 8N1).
+    pub bits_per_char: u32,
+}
+
+impl LineSettings {
+    /// 8 data bits, no parity, 1 stop bit.
+    pub fn n81(baud: u32) -> Self {
+        LineSettings { baud, bits_per_char: 10 }
+    }
+
+    /// Time one character occupies the line.
+    pub fn char_time(&self) -> Duration {
+        self.wire_time(1)
+    }
+
+    /// Time `bytes` characters occupy the line.
+    pub fn wire_time(&self, bytes: usize) -> Duration {
+        let bits = u64::try_from(bytes).unwrap_or(u64::MAX).saturating_mul(u64::from(self.bits_per_char));
+        let nanos = bits.saturating_mul(1_000_000_000) / u64::from(self.baud.max(1));
+        Duration::from_nanos(nanos)
+    }
+}
+
+/// A bidirectional byte stream: a serial port, one side of a pseudo-terminal, or a
+/// decorator around another link.
+pub trait Link: Send {
+    /// Writes all bytes (returns when they are handed to the OS, or, for paced links,
+    /// when they would have left the wire).
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()>;
+
+    /// Reads what is available, waiting at most `timeout` for the first byte.
+    /// `Ok(0)` means the time-out elapsed with nothing received.
+    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize>;
+
+    /// Drops bytes received but not yet read.
+    fn discard_input(&mut self) -> io::Result<()>;
+
+    /// Baud rate and character framing.
+    fn line(&self) -> LineSettings;
+
+    /// A description for messages (e.g. the device path).
+    fn describe(&self) -> String;
+}
+
+impl<L: Link + ?Sized> Link for Box<L> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        (**self).write_all(bytes)
+    }
+    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        (**self).read(buf, timeout)
+    }
+    fn discard_input(&mut self) -> io::Result<()> {
+        (**self).discard_input()
+    }
+    fn line(&self) -> LineSettings {
+        (**self).line()
+    }
+    fn describe(&self) -> String {
+        (**self).describe()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wire_time_at_9600() {
+        // 12 bytes of 10 bits at 9600 Bd = 12.5 ms.
+        assert_eq!(LineSettings::n81(9600).wire_time(12), Duration::from_micros(12_500));
+    }
+}
