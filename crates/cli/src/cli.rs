@@ -1,0 +1,251 @@
+//! The command-line grammar (clap).
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use std::path::PathBuf;
+
+/// Motus: drive and supervise servo drives on field buses, and simulate them.
+#[derive(Debug, Parser)]
+#[command(name = "motus", version, about)]
+pub struct Cli {
+    /// Log debug messages to stderr (or set MOTUS_LOG, e.g. MOTUS_LOG=trace).
+    #[arg(short, long, global = true)]
+    pub verbose: bool,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Top-level commands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Decode one frame given as hex bytes; prints one JSON object.
+    Decode {
+        /// Frame format.
+        format: FrameFormat,
+        /// Hex bytes, e.g. "03 00 00 03" or 03000003.
+        hex: String,
+    },
+    /// Encode one frame given as JSON; prints uppercase hex bytes.
+    Encode {
+        /// Frame format.
+        format: FrameFormat,
+        /// The frame as JSON (the form `decode` prints).
+        json: String,
+    },
+    /// Run a device simulator.
+    #[command(subcommand)]
+    Sim(SimCommand),
+    /// Command one axis named by a URI, e.g. ps1a:///dev/ttyUSB0?addr=3.
+    Axis(AxisArgs),
+    /// PS1A line tools: scan for modules, parameters.
+    Ps1a(Ps1aArgs),
+    /// Start simulated devices and run them through a demonstration sequence.
+    Demo(DemoArgs),
+}
+
+/// Frame formats of `decode` / `encode`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FrameFormat {
+    /// PS1A command, host -> module.
+    Ps1aCmd,
+    /// PS1A status reply, module -> host.
+    Ps1aReply,
+}
+
+/// Simulators.
+#[derive(Debug, Subcommand)]
+pub enum SimCommand {
+    /// Simulated PS1A modules on one line.
+    Ps1a(SimPs1aArgs),
+}
+
+/// Options of `motus sim ps1a`.
+#[derive(Debug, Args)]
+pub struct SimPs1aArgs {
+    /// Where to serve: pty:<path> creates a pseudo-terminal with a symlink at <path>;
+    /// serial:<device> serves a real serial port.
+    #[arg(long)]
+    pub link: String,
+    /// Factory addresses of the modules, comma-separated (1 to 16 modules).
+    #[arg(long, value_delimiter = ',', required = true)]
+    pub addr: Vec<u8>,
+    /// State file: EEPROM parameters and machine positions survive a restart.
+    #[arg(long)]
+    pub state_file: Option<PathBuf>,
+    /// Bytes take their real wire time at --baud.
+    #[arg(long)]
+    pub baud_pacing: bool,
+    /// Nominal baud rate of the line.
+    #[arg(long, default_value_t = 9600)]
+    pub baud: u32,
+    /// Probability of dropping a reply (0..1).
+    #[arg(long, default_value_t = 0.0)]
+    pub drop_rate: f64,
+    /// Probability of corrupting each byte, in both directions (0..1).
+    #[arg(long, default_value_t = 0.0)]
+    pub corrupt_rate: f64,
+    /// Seed of the fault injection.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Simulated machine (JSON object with MachineConfig fields, e.g. '{"limit_positive": 20000}').
+    #[arg(long)]
+    pub machine: Option<String>,
+}
+
+/// Options of `motus axis`.
+#[derive(Debug, Args)]
+pub struct AxisArgs {
+    /// The axis, e.g. ps1a:///dev/ttyUSB0?addr=3&baud=9600.
+    pub uri: String,
+    /// What to do.
+    #[command(subcommand)]
+    pub action: AxisAction,
+    /// Wait until the motion ends (home, moves, jog).
+    #[arg(long, global = true)]
+    pub wait: bool,
+    /// Print JSON instead of text.
+    #[arg(long, global = true)]
+    pub json: bool,
+    /// Positions in SI units (m or rad) instead of device units.
+    #[arg(long, global = true)]
+    pub si: bool,
+    /// Velocity for moves and jogs (device units/s, or m/s with --si).
+    #[arg(long, global = true)]
+    pub velocity: Option<f64>,
+    /// Acceleration (device units/s^2, or m/s^2 with --si).
+    #[arg(long, global = true)]
+    pub acceleration: Option<f64>,
+    /// Give up waiting after this many seconds.
+    #[arg(long, global = true, default_value_t = 120.0)]
+    pub timeout: f64,
+}
+
+/// Axis actions.
+#[derive(Debug, Subcommand)]
+pub enum AxisAction {
+    /// Print the axis state.
+    Status,
+    /// Switch the drive / power stage on.
+    Enable,
+    /// Switch the drive / power stage off.
+    Disable,
+    /// Run the homing procedure.
+    Home,
+    /// Move to an absolute position.
+    #[command(allow_negative_numbers = true)]
+    MoveAbs {
+        /// Target position.
+        position: f64,
+    },
+    /// Move by a distance.
+    #[command(allow_negative_numbers = true)]
+    MoveRel {
+        /// Signed distance.
+        distance: f64,
+    },
+    /// Move continuously: + or -.
+    Jog {
+        /// Direction: + or -.
+        #[arg(allow_hyphen_values = true)]
+        direction: String,
+    },
+    /// Decelerate to standstill.
+    Stop,
+    /// Stop as fast as the device can.
+    QuickStop,
+    /// Clear latched faults whose cause is gone.
+    FaultReset,
+}
+
+/// Options of `motus ps1a`.
+#[derive(Debug, Args)]
+pub struct Ps1aArgs {
+    /// Serial port or simulator pty link.
+    pub port: String,
+    /// Baud rate.
+    #[arg(long, default_value_t = 9600, global = true)]
+    pub baud: u32,
+    /// Print JSON.
+    #[arg(long, global = true)]
+    pub json: bool,
+    /// What to do.
+    #[command(subcommand)]
+    pub action: Ps1aAction,
+}
+
+/// PS1A line actions.
+#[derive(Debug, Subcommand)]
+pub enum Ps1aAction {
+    /// Find the modules present on the line.
+    Scan {
+        /// Address range to probe, e.g. 0-15 (default 0-255).
+        #[arg(long, default_value = "0-255")]
+        range: String,
+        /// Time-out margin per address in ms.
+        #[arg(long, default_value_t = 5)]
+        margin_ms: u64,
+    },
+    /// Module parameters (command 1).
+    #[command(subcommand)]
+    Params(ParamsAction),
+}
+
+/// Parameter actions.
+#[derive(Debug, Subcommand)]
+pub enum ParamsAction {
+    /// Show the parameters Motus last wrote to a module (the PS1A cannot report them).
+    Get {
+        /// Module address.
+        #[arg(long)]
+        addr: u8,
+    },
+    /// Write parameters to a module (stored in its EEPROM). Fields not given keep the
+    /// values last written by Motus, or the factory defaults.
+    Set(ParamsSet),
+}
+
+/// Fields of `params set`.
+#[derive(Debug, Args)]
+pub struct ParamsSet {
+    /// Module address to write to.
+    #[arg(long)]
+    pub addr: u8,
+    /// New module address (ADR).
+    #[arg(long)]
+    pub new_addr: Option<u8>,
+    /// DS: fraction x/256 of a unit per DDA cycle at unit speed.
+    #[arg(long)]
+    pub ds: Option<u8>,
+    /// TVZ: DDA cycle code 0..3 (1.54, 2.1, 2.66, 4.2 ms).
+    #[arg(long)]
+    pub tvz: Option<u8>,
+    /// COMS: baud-rate code 0..3 (9600, 19200, 29070, 33784).
+    #[arg(long)]
+    pub coms: Option<u8>,
+    /// Maximum position (units, 24 bit).
+    #[arg(long)]
+    pub max: Option<u32>,
+    /// VNRB: reference approach speed.
+    #[arg(long)]
+    pub vnrb: Option<u8>,
+    /// ANRB: reference approach acceleration number 1..10.
+    #[arg(long)]
+    pub anrb: Option<u8>,
+    /// VNNB: zero-pulse approach speed.
+    #[arg(long)]
+    pub vnnb: Option<u8>,
+    /// ANNB: zero-pulse approach acceleration number 1..10.
+    #[arg(long)]
+    pub annb: Option<u8>,
+}
+
+/// Options of `motus demo`.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Number of simulated PS1A modules.
+    #[arg(long, default_value_t = 4)]
+    pub ps1a_modules: u8,
+    /// Keep the simulators running after the sequence until Ctrl-C.
+    #[arg(long)]
+    pub stay: bool,
+}

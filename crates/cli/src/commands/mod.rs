@@ -1,0 +1,31 @@
+//! Command implementations, one module per top-level command.
+
+mod axis;
+mod codec;
+mod demo;
+mod ps1a;
+mod sim;
+
+use crate::cli::Command;
+use anyhow::Result;
+
+/// Runs one command.
+pub fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Decode { format, hex } => codec::decode(format, &hex),
+        Command::Encode { format, json } => codec::encode(format, &json),
+        Command::Sim(s) => sim::run(s),
+        Command::Axis(a) => axis::run(a),
+        Command::Ps1a(p) => ps1a::run(p),
+        Command::Demo(d) => demo::run(d),
+    }
+}
+
+/// A stop flag set by SIGINT / SIGTERM.
+pub fn stop_flag() -> Result<std::sync::Arc<std::sync::atomic::AtomicBool>> {
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, flag.clone())?;
+    }
+    Ok(flag)
+}

@@ -1,0 +1,53 @@
+//! `motus sim ...`.
+
+use crate::cli::{SimCommand, SimPs1aArgs};
+use anyhow::{bail, Context, Result};
+use motus_ps1a_sim::{LineOptions, MachineConfig, SimLine};
+use motus_serial::{FaultConfig, LineSettings, Link, PtyLink, SerialLink};
+use std::path::Path;
+
+/// Runs a simulator until SIGINT/SIGTERM.
+pub fn run(cmd: SimCommand) -> Result<()> {
+    match cmd {
+        SimCommand::Ps1a(args) => ps1a(args),
+    }
+}
+
+/// Opens the simulator's side of a link spec: `pty:<path>` or `serial:<device>`.
+pub fn open_sim_link(spec: &str, baud: u32) -> Result<Box<dyn Link>> {
+    if let Some(path) = spec.strip_prefix("pty:") {
+        let pty = PtyLink::create(Some(Path::new(path)), LineSettings::n81(baud))
+            .with_context(|| format!("cannot create the pty link {path}"))?;
+        eprintln!("simulator listening on {} ({})", path, pty.slave_path().display());
+        Ok(Box::new(pty))
+    } else if let Some(dev) = spec.strip_prefix("serial:") {
+        Ok(Box::new(SerialLink::open(dev, baud)?))
+    } else {
+        bail!("invalid --link {spec:?}: expected pty:<path> or serial:<device>")
+    }
+}
+
+fn ps1a(a: SimPs1aArgs) -> Result<()> {
+    for (name, rate) in [("--drop-rate", a.drop_rate), ("--corrupt-rate", a.corrupt_rate)] {
+        if !(0.0..=1.0).contains(&rate) {
+            bail!("{name} must be between 0 and 1, got {rate}");
+        }
+    }
+    let machine: MachineConfig = match &a.machine {
+        Some(json) => serde_json::from_str(json).context("invalid --machine JSON")?,
+        None => MachineConfig::default(),
+    };
+    let link = open_sim_link(&a.link, a.baud)?;
+    let options = LineOptions {
+        addresses: a.addr.clone(),
+        state_file: a.state_file.clone(),
+        baud_pacing: a.baud_pacing,
+        faults: FaultConfig { drop_rate: a.drop_rate, corrupt_rate: a.corrupt_rate, seed: a.seed },
+        machine,
+    };
+    let mut line = SimLine::new(link, options)?;
+    let stop = super::stop_flag()?;
+    eprintln!("simulating PS1A modules at addresses {:?}; Ctrl-C to stop", a.addr);
+    line.run(&stop)?;
+    Ok(())
+}
