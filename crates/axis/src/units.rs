@@ -97,7 +97,7 @@ impl Scale {
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used)]
+    #![allow(clippy::panic, clippy::unwrap_used)]
     use super::*;
     use proptest::prelude::*;
 

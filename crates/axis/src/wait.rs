@@ -26,13 +26,20 @@ pub fn wait_until(
         let state = axis.read_state()?;
         progress(&state);
         if let Some(fault) = state.faults.first() {
-            return Err(AxisError::DeviceFault { axis: axis.name().to_string(), reason: fault.reason.clone() });
+            return Err(AxisError::DeviceFault {
+                axis: axis.name().to_string(),
+                reason: fault.reason.clone(),
+            });
         }
         if done(&state) {
             return Ok(WaitOutcome::Done(state));
         }
         if start.elapsed() >= timeout {
-            return Err(AxisError::WaitTimeout { axis: axis.name().to_string(), what: what.to_string(), timeout });
+            return Err(AxisError::WaitTimeout {
+                axis: axis.name().to_string(),
+                what: what.to_string(),
+                timeout,
+            });
         }
         std::thread::sleep(period);
     }

@@ -62,8 +62,8 @@ pub enum SimCommand {
 /// Options of `motus sim ps1a`.
 #[derive(Debug, Args)]
 pub struct SimPs1aArgs {
-    /// Where to serve: pty:<path> creates a pseudo-terminal with a symlink at <path>;
-    /// serial:<device> serves a real serial port.
+    /// Where to serve: `pty:PATH` creates a pseudo-terminal with a symlink at PATH;
+    /// `serial:DEVICE` serves a real serial port.
     #[arg(long)]
     pub link: String,
     /// Factory addresses of the modules, comma-separated (1 to 16 modules).

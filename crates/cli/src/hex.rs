@@ -19,7 +19,8 @@ pub fn parse(text: &str) -> Result<Vec<u8>> {
     let chars: Vec<char> = digits.chars().collect();
     for pair in chars.chunks(2) {
         let s: String = pair.iter().collect();
-        let b = u8::from_str_radix(&s, 16).map_err(|_| anyhow::anyhow!("invalid hex input: {s:?} is not a hex byte"))?;
+        let b = u8::from_str_radix(&s, 16)
+            .map_err(|_| anyhow::anyhow!("invalid hex input: {s:?} is not a hex byte"))?;
         out.push(b);
     }
     Ok(out)
@@ -32,7 +33,7 @@ pub fn format(bytes: &[u8]) -> String {
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used)]
+    #![allow(clippy::panic, clippy::unwrap_used)]
     use super::*;
 
     #[test]

@@ -222,9 +222,11 @@ impl CommandFrame {
             _ => &[],
         };
         let (header, rest) = out.split_at_mut(PARAMS_INDEX);
-        header[ADDRESS_INDEX] = self.addr;
-        header[LENGTH_INDEX] = n;
-        header[CODE_INDEX] = code as u8;
+        let mut head = [0u8; PARAMS_INDEX];
+        head[ADDRESS_INDEX] = self.addr;
+        head[LENGTH_INDEX] = n;
+        head[CODE_INDEX] = code as u8;
+        header.copy_from_slice(&head);
         let (body, sum) = rest.split_at_mut(p.len());
         body.copy_from_slice(p);
         let total = sum8(header).wrapping_add(sum8(body));
@@ -288,10 +290,13 @@ impl CommandFrame {
         let command = match CommandCode::from_u8(code).ok_or(DecodeError::UnknownCode(code))? {
             CommandCode::StatusRequest => Command::StatusRequest,
             CommandCode::SetParameters => {
-                let b: [u8; 11] = p.try_into().map_err(|_| DecodeError::TooShort { needed: len, got: bytes.len() })?;
+                let b: [u8; 11] =
+                    p.try_into().map_err(|_| DecodeError::TooShort { needed: len, got: bytes.len() })?;
                 Command::SetParameters { parameters: Parameters::from_bytes(b)? }
             }
-            CommandCode::ControlByte => Command::ControlByte { control: ControlByte(p.first().copied().unwrap_or(0)) },
+            CommandCode::ControlByte => {
+                Command::ControlByte { control: ControlByte(p.first().copied().unwrap_or(0)) }
+            }
             CommandCode::SetSpeed => {
                 let [lv, hv, a] = three(p, len, bytes.len())?;
                 Command::SetSpeed {
@@ -299,8 +304,12 @@ impl CommandFrame {
                     acceleration: Acceleration::decode("A", a)?,
                 }
             }
-            CommandCode::MoveAbsolute => Command::MoveAbsolute { target: U24::from_le(three(p, len, bytes.len())?) },
-            CommandCode::MoveRelative => Command::MoveRelative { increment: I24::from_le(three(p, len, bytes.len())?) },
+            CommandCode::MoveAbsolute => {
+                Command::MoveAbsolute { target: U24::from_le(three(p, len, bytes.len())?) }
+            }
+            CommandCode::MoveRelative => {
+                Command::MoveRelative { increment: I24::from_le(three(p, len, bytes.len())?) }
+            }
             CommandCode::JogPlus => Command::JogPlus,
             CommandCode::JogMinus => Command::JogMinus,
             CommandCode::Reset => Command::Reset,

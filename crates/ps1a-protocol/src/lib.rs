@@ -37,7 +37,9 @@ pub use error::{DecodeError, EncodeError};
 pub use parameters::{Acceleration, BaudRate, ControlByte, DdaCycle, Parameters};
 pub use reply::StatusReply;
 pub use status::{HighStatus, LowStatus};
-pub use stream::{scan_command, scan_reply, CommandStream, ReplyStream, Scan, Stream, StreamEvent, StreamStats};
+pub use stream::{
+    scan_command, scan_reply, CommandStream, ReplyStream, Scan, Stream, StreamEvent, StreamStats,
+};
 pub use values::{I24, U24};
 
 /// Length in bytes of a status reply (`ADR N LBS HBS BP1 BP2 BP3 CSUM`).

@@ -65,7 +65,12 @@ impl StatusReply {
         if expected != received {
             return Err(DecodeError::Checksum { expected, received });
         }
-        Ok(StatusReply { addr, low: LowStatus(lbs), high: HighStatus(hbs), position: U24::from_le([p1, p2, p3]) })
+        Ok(StatusReply {
+            addr,
+            low: LowStatus(lbs),
+            high: HighStatus(hbs),
+            position: U24::from_le([p1, p2, p3]),
+        })
     }
 }
 
@@ -103,7 +108,12 @@ impl From<StatusReply> for ReplyJson {
 impl TryFrom<ReplyJson> for StatusReply {
     type Error = String;
     fn try_from(j: ReplyJson) -> Result<Self, Self::Error> {
-        let r = StatusReply { addr: j.addr, low: LowStatus(j.lbs), high: HighStatus(j.hbs), position: j.position };
+        let r = StatusReply {
+            addr: j.addr,
+            low: LowStatus(j.lbs),
+            high: HighStatus(j.hbs),
+            position: j.position,
+        };
         if let Some(flags) = j.lbs_flags {
             let names: Vec<String> = r.low.names().into_iter().map(str::to_string).collect();
             if flags != names {

@@ -47,7 +47,7 @@ pub fn acceleration_number_for(units_per_s2: f64, ds: u8, cycle: DdaCycle) -> Op
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used)]
+    #![allow(clippy::panic, clippy::unwrap_used)]
     use super::*;
 
     #[test]

@@ -1,6 +1,6 @@
 //! Codec tests with frames computed by hand from `specs/ps1a.md` (command table, status
 //! reply table, checksum = 8-bit sum of ADR..PN with carry ignored), plus property tests.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use motus_ps1a_protocol::*;
 use proptest::prelude::*;
@@ -58,10 +58,7 @@ fn set_parameters_defaults() {
 #[test]
 fn control_byte_power_and_reference() {
     // D0|D2 = 0x05; CHSUM = 04+01+02+05 = 0x0C
-    assert_eq!(
-        frame(4, Command::ControlByte { control: ControlByte(0x05) }),
-        [0x04, 0x01, 0x02, 0x05, 0x0C]
-    );
+    assert_eq!(frame(4, Command::ControlByte { control: ControlByte(0x05) }), [0x04, 0x01, 0x02, 0x05, 0x0C]);
 }
 
 #[test]
@@ -101,7 +98,10 @@ fn decoding_names_the_fault() {
         CommandFrame::decode(&[0x03, 0x01, 0x00, 0x00, 0x04]).unwrap_err(),
         DecodeError::WrongParameterCount { code: 0, declared: 1, expected: 0, .. }
     ));
-    assert!(matches!(CommandFrame::decode(&[0x03, 0x03, 0x04, 0xE8]).unwrap_err(), DecodeError::TooShort { .. }));
+    assert!(matches!(
+        CommandFrame::decode(&[0x03, 0x03, 0x04, 0xE8]).unwrap_err(),
+        DecodeError::TooShort { .. }
+    ));
     assert!(matches!(
         CommandFrame::decode(&[0x03, 0x00, 0x00, 0x03, 0x00]).unwrap_err(),
         DecodeError::TooLong { .. }
@@ -156,8 +156,10 @@ fn json_round_trip_and_shape() {
     assert_eq!(json["lbs_flags"], serde_json::json!(["after_reset", "in_motion"]));
     let back: StatusReply = serde_json::from_value(json).unwrap();
     assert_eq!(back, r);
-    assert!(serde_json::from_str::<CommandFrame>(r#"{"addr":3,"command":"move_absolute","target":16777216}"#)
-        .is_err());
+    assert!(serde_json::from_str::<CommandFrame>(
+        r#"{"addr":3,"command":"move_absolute","target":16777216}"#
+    )
+    .is_err());
 }
 
 fn any_command() -> impl Strategy<Value = Command> {

@@ -59,7 +59,8 @@ pub struct SimLine {
 impl SimLine {
     /// Powers the modules on (from the state file if it exists) on `link`.
     pub fn new(link: Box<dyn Link>, options: LineOptions) -> Result<SimLine, LineError> {
-        if options.addresses.is_empty() || options.addresses.len() > motus_ps1a_protocol::MAX_MODULES_PER_LINE {
+        if options.addresses.is_empty() || options.addresses.len() > motus_ps1a_protocol::MAX_MODULES_PER_LINE
+        {
             return Err(LineError::Options(format!(
                 "between 1 and 16 module addresses are needed, got {}",
                 options.addresses.len()
@@ -78,10 +79,22 @@ impl SimLine {
             .iter()
             .enumerate()
             .map(|(i, &addr)| match stored.modules.get(i) {
-                Some(s) => Module::power_on(s.parameters, s.programmed, options.machine, s.machine_position, Duration::ZERO),
+                Some(s) => Module::power_on(
+                    s.parameters,
+                    s.programmed,
+                    options.machine,
+                    s.machine_position,
+                    Duration::ZERO,
+                ),
                 None => {
                     let p = Parameters { address: addr, ..Parameters::default() };
-                    Module::power_on(p, false, options.machine, options.machine.initial_position, Duration::ZERO)
+                    Module::power_on(
+                        p,
+                        false,
+                        options.machine,
+                        options.machine.initial_position,
+                        Duration::ZERO,
+                    )
                 }
             })
             .collect();
@@ -188,7 +201,10 @@ impl SimLine {
                 let reply = match event {
                     StreamEvent::Frame(f) => {
                         frame_len = f.command.frame_len();
-                        self.modules.iter_mut().find(|m| m.address() == f.addr).map(|m| m.handle(&f.command, now))
+                        self.modules
+                            .iter_mut()
+                            .find(|m| m.address() == f.addr)
+                            .map(|m| m.handle(&f.command, now))
                     }
                     StreamEvent::ChecksumError { addr, .. } => {
                         frame_len = REPLY_LEN;
@@ -222,7 +238,8 @@ impl SimLine {
         for m in &mut self.modules {
             m.advance_to(now);
         }
-        let moved = self.modules.iter().map(Module::machine_position).ne(self.saved_positions.iter().copied());
+        let moved =
+            self.modules.iter().map(Module::machine_position).ne(self.saved_positions.iter().copied());
         if moved && self.last_save.elapsed() > Duration::from_millis(200) {
             self.save().map_err(std::io::Error::other)?;
         }

@@ -224,14 +224,19 @@ impl Module {
         let hit = (neg && (!was_neg || v < 0.0)) || (pos && (!was_pos || v > 0.0));
         self.limit_pressed = (neg, pos);
         if hit && (self.power_stage || self.motion.is_some()) {
-            tracing::info!(addr = self.params.address, position = self.actual, "limit switch crossed: power stage off");
+            tracing::info!(
+                addr = self.params.address,
+                position = self.actual,
+                "limit switch crossed: power stage off"
+            );
             self.low |= LowStatus::LIMIT_SWITCH;
             self.emergency();
         }
     }
 
     fn check_following_error(&mut self) {
-        if self.motion.is_some() && (self.commanded - self.actual).abs() > self.machine.following_error_limit {
+        if self.motion.is_some() && (self.commanded - self.actual).abs() > self.machine.following_error_limit
+        {
             self.low |= LowStatus::FOLLOWING_ERROR;
             self.abort_motion();
         }
@@ -349,7 +354,11 @@ impl Module {
     fn start_homing(&mut self, reference: bool, zero: bool) {
         self.high = 0;
         if reference {
-            let first = if self.machine.reference_pressed(self.actual) { Purpose::LeaveSwitch } else { Purpose::SeekSwitch };
+            let first = if self.machine.reference_pressed(self.actual) {
+                Purpose::LeaveSwitch
+            } else {
+                Purpose::SeekSwitch
+            };
             self.start(first, zero);
         } else if zero {
             self.start(Purpose::SeekZero, false);
@@ -422,14 +431,16 @@ impl Module {
                 if self.motion_allowed() && self.speed > 0 {
                     let target = if matches!(command, Command::JogPlus) { self.max_position() } else { 0.0 };
                     let pos = self.commanded_position();
-                    let towards = if matches!(command, Command::JogPlus) { target > pos } else { target < pos };
+                    let towards =
+                        if matches!(command, Command::JogPlus) { target > pos } else { target < pos };
                     if towards {
                         self.plan_to(target + self.counter_zero, Purpose::Jog);
                     }
                 }
             }
             Command::Reset => {
-                let (params, programmed, machine, x) = (self.params, self.programmed, self.machine, self.actual);
+                let (params, programmed, machine, x) =
+                    (self.params, self.programmed, self.machine, self.actual);
                 *self = Module::power_on(params, programmed, machine, x, now);
             }
             Command::Stop => {

@@ -2,7 +2,7 @@
 //! trapezoid computed independently here (from DS, the cycle, the speed value and the
 //! acceleration number, with the formulas of `specs/ps1a.md` and our documented
 //! acceleration mapping) within 1 unit at every DDA cycle.
-#![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+#![allow(clippy::panic, clippy::unwrap_used, clippy::indexing_slicing)]
 
 use motus_ps1a_protocol::*;
 use motus_ps1a_sim::{MachineConfig, Module};
@@ -10,11 +10,7 @@ use std::time::Duration;
 
 /// Closed-form trapezoid (or triangle) from rest over distance `d` >= 0.
 fn theory(t: f64, d: f64, v: f64, a: f64) -> f64 {
-    let (t_acc, t_flat) = if d >= v * v / a {
-        (v / a, (d - v * v / a) / v)
-    } else {
-        ((d / a).sqrt(), 0.0)
-    };
+    let (t_acc, t_flat) = if d >= v * v / a { (v / a, (d - v * v / a) / v) } else { ((d / a).sqrt(), 0.0) };
     let vp = a * t_acc;
     let total = 2.0 * t_acc + t_flat;
     if t <= 0.0 {

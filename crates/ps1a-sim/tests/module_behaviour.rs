@@ -1,6 +1,6 @@
 //! Module behaviour from `specs/ps1a.md`, stepped on a virtual clock: status bits and
 //! their clearing, homing, maximum position, jog limit, limit switches, following error.
-#![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+#![allow(clippy::panic, clippy::unwrap_used, clippy::indexing_slicing)]
 
 use motus_ps1a_protocol::*;
 use motus_ps1a_sim::{MachineConfig, Module};
@@ -14,7 +14,10 @@ struct Rig {
 impl Rig {
     fn new(programmed: bool, machine: MachineConfig) -> Rig {
         let p = Parameters { address: 1, ..Parameters::default() };
-        Rig { m: Module::power_on(p, programmed, machine, machine.initial_position, Duration::ZERO), now: Duration::ZERO }
+        Rig {
+            m: Module::power_on(p, programmed, machine, machine.initial_position, Duration::ZERO),
+            now: Duration::ZERO,
+        }
     }
     fn cmd(&mut self, c: Command) -> StatusReply {
         self.m.handle(&c, self.now)
@@ -131,7 +134,11 @@ fn limit_switch_switches_power_stage_off() {
     let mut r = Rig::new(true, machine);
     r.power();
     r.cmd(Command::SetParameters {
-        parameters: Parameters { address: 1, max_position: U24::new(100_000).unwrap(), ..Parameters::default() },
+        parameters: Parameters {
+            address: 1,
+            max_position: U24::new(100_000).unwrap(),
+            ..Parameters::default()
+        },
     });
     r.cmd(Command::Home);
     r.settle();

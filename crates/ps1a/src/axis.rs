@@ -6,10 +6,12 @@
 
 use crate::bus::{Ps1aBus, Ps1aError};
 use motus_axis::{
-    Axis, AxisCommand, AxisError, AxisFlags, AxisState, Capabilities, Direction, Fault, FaultKind, MotionProfile,
-    Scale,
+    Axis, AxisCommand, AxisError, AxisFlags, AxisState, Capabilities, Direction, Fault, FaultKind,
+    MotionProfile, Scale,
 };
-use motus_ps1a_protocol::units::{acceleration_number_for, acceleration_units_per_s2, speed_value_for, velocity_units_per_s};
+use motus_ps1a_protocol::units::{
+    acceleration_number_for, acceleration_units_per_s2, speed_value_for, velocity_units_per_s,
+};
 use motus_ps1a_protocol::{Acceleration, Command, ControlByte, DdaCycle, LowStatus, StatusReply, I24, U24};
 
 /// Configuration of one PS1A axis (what the host must know, since the module's
@@ -65,7 +67,16 @@ impl Ps1aAxis {
     /// The axis of module `config.addr` on `bus`.
     pub fn new(bus: Ps1aBus, config: AxisConfig) -> Self {
         let name = format!("ps1a:{}#{}", bus.master().describe(), config.addr);
-        Ps1aAxis { bus, config, name, power_stage: None, latched: Vec::new(), seen_homed: false, last_target: None, last_reply: None }
+        Ps1aAxis {
+            bus,
+            config,
+            name,
+            power_stage: None,
+            latched: Vec::new(),
+            seen_homed: false,
+            last_target: None,
+            last_reply: None,
+        }
     }
 
     /// The configuration.
@@ -85,12 +96,18 @@ impl Ps1aAxis {
 
     fn bus_error(&self, e: Ps1aError) -> AxisError {
         match e {
-            Ps1aError::Bus(motus_serial::BusError::Timeout { timeout, attempts, corrupt, .. }) => AxisError::Timeout {
-                axis: self.name.clone(),
-                timeout,
-                attempts,
-                detail: if corrupt > 0 { format!("; {corrupt} corrupted reply frame(s)") } else { String::new() },
-            },
+            Ps1aError::Bus(motus_serial::BusError::Timeout { timeout, attempts, corrupt, .. }) => {
+                AxisError::Timeout {
+                    axis: self.name.clone(),
+                    timeout,
+                    attempts,
+                    detail: if corrupt > 0 {
+                        format!("; {corrupt} corrupted reply frame(s)")
+                    } else {
+                        String::new()
+                    },
+                }
+            }
             other => AxisError::Communication { axis: self.name.clone(), reason: other.to_string() },
         }
     }
@@ -111,10 +128,16 @@ impl Ps1aAxis {
             }
         };
         if low.has(LowStatus::LIMIT_SWITCH) {
-            latch(FaultKind::LimitSwitch, "emergency limit switch crossed (LBS bit 2): the module switched the power stage off");
+            latch(
+                FaultKind::LimitSwitch,
+                "emergency limit switch crossed (LBS bit 2): the module switched the power stage off",
+            );
         }
         if low.has(LowStatus::ENCODER_ERROR) {
-            latch(FaultKind::Encoder, "encoder error (LBS bit 3): lost phase, broken duty ratio or phase shift; power stage off");
+            latch(
+                FaultKind::Encoder,
+                "encoder error (LBS bit 3): lost phase, broken duty ratio or phase shift; power stage off",
+            );
         }
         if low.has(LowStatus::FOLLOWING_ERROR) {
             latch(FaultKind::FollowingError, "following-error overflow during motion (LBS bit 7)");
@@ -148,12 +171,15 @@ impl Ps1aAxis {
     fn state_from(&self, r: &StatusReply) -> AxisState {
         let raw = self.raw_position(r);
         let moving = r.low.has(LowStatus::IN_MOTION);
-        let homed = !r.low.has(LowStatus::AFTER_RESET) && !self.latched.iter().any(|f| f.kind == FaultKind::DeviceReset);
+        let homed = !r.low.has(LowStatus::AFTER_RESET)
+            && !self.latched.iter().any(|f| f.kind == FaultKind::DeviceReset);
         let mut faults = self.latched.clone();
         if r.low.has(LowStatus::NO_PARAMETERS) {
             faults.push(Fault {
                 kind: FaultKind::Other,
-                reason: "parameters were never sent (LBS bit 4): write them with `motus ps1a <port> params set`".into(),
+                reason:
+                    "parameters were never sent (LBS bit 4): write them with `motus ps1a <port> params set`"
+                        .into(),
             });
         }
         AxisState {
@@ -178,7 +204,10 @@ impl Ps1aAxis {
     fn require_motion_ok(&mut self, command: &str) -> Result<StatusReply, AxisError> {
         let r = self.send(Command::StatusRequest)?;
         if let Some(f) = self.latched.iter().find(|f| f.kind != FaultKind::DeviceReset) {
-            return Err(AxisError::DeviceFault { axis: self.name.clone(), reason: format!("{}; run fault-reset", f.reason) });
+            return Err(AxisError::DeviceFault {
+                axis: self.name.clone(),
+                reason: format!("{}; run fault-reset", f.reason),
+            });
         }
         let reset = self.latched.iter().any(|f| f.kind == FaultKind::DeviceReset);
         if r.low.has(LowStatus::AFTER_RESET) || reset {
@@ -198,19 +227,28 @@ impl Ps1aAxis {
             None => c.speed,
             Some(v) if v.is_finite() && v > 0.0 => {
                 let units = c.scale.rate_from_si(v).abs();
-                speed_value_for(units, c.ds, c.tvz).filter(|s| *s > 0).ok_or_else(|| AxisError::InvalidArgument {
-                    axis: self.name.clone(),
-                    reason: format!("velocity {v} is below one speed unit ({} units/s)", velocity_units_per_s(1, c.ds, c.tvz)),
+                speed_value_for(units, c.ds, c.tvz).filter(|s| *s > 0).ok_or_else(|| {
+                    AxisError::InvalidArgument {
+                        axis: self.name.clone(),
+                        reason: format!(
+                            "velocity {v} is below one speed unit ({} units/s)",
+                            velocity_units_per_s(1, c.ds, c.tvz)
+                        ),
+                    }
                 })?
             }
             Some(v) => {
-                return Err(AxisError::InvalidArgument { axis: self.name.clone(), reason: format!("velocity must be > 0, got {v}") })
+                return Err(AxisError::InvalidArgument {
+                    axis: self.name.clone(),
+                    reason: format!("velocity must be > 0, got {v}"),
+                })
             }
         };
         let acceleration = match profile.acceleration {
             None => c.acceleration,
             Some(a) if a.is_finite() && a > 0.0 => {
-                acceleration_number_for(c.scale.rate_from_si(a).abs(), c.ds, c.tvz).unwrap_or(Acceleration::MIN)
+                acceleration_number_for(c.scale.rate_from_si(a).abs(), c.ds, c.tvz)
+                    .unwrap_or(Acceleration::MIN)
             }
             Some(a) => {
                 return Err(AxisError::InvalidArgument {
@@ -332,7 +370,10 @@ impl Axis for Ps1aAxis {
                     return Err(AxisError::NotEnabled { axis: self.name.clone() });
                 }
                 if let Some(f) = self.latched.iter().find(|f| f.kind != FaultKind::DeviceReset) {
-                    return Err(AxisError::DeviceFault { axis: self.name.clone(), reason: format!("{}; run fault-reset", f.reason) });
+                    return Err(AxisError::DeviceFault {
+                        axis: self.name.clone(),
+                        reason: format!("{}; run fault-reset", f.reason),
+                    });
                 }
                 self.latched.retain(|f| f.kind != FaultKind::DeviceReset);
                 self.seen_homed = false;
@@ -348,14 +389,20 @@ impl Axis for Ps1aAxis {
             }
             AxisCommand::MoveAbsolute { target, profile } => {
                 if !target.is_finite() {
-                    return Err(AxisError::InvalidArgument { axis: self.name.clone(), reason: format!("target {target} is not a number") });
+                    return Err(AxisError::InvalidArgument {
+                        axis: self.name.clone(),
+                        reason: format!("target {target} is not a number"),
+                    });
                 }
                 let raw = self.config.scale.position_from_si(*target).round() as i64;
                 self.move_to_raw(raw, profile)?;
             }
             AxisCommand::MoveRelative { distance, profile } => {
                 if !distance.is_finite() {
-                    return Err(AxisError::InvalidArgument { axis: self.name.clone(), reason: format!("distance {distance} is not a number") });
+                    return Err(AxisError::InvalidArgument {
+                        axis: self.name.clone(),
+                        reason: format!("distance {distance} is not a number"),
+                    });
                 }
                 let r = self.require_motion_ok("move-rel")?;
                 let moving = r.low.has(LowStatus::IN_MOTION);

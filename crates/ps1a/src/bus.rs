@@ -1,6 +1,8 @@
 //! PS1A transactions on a shared bus master.
 
-use motus_ps1a_protocol::{scan_reply, Command, CommandFrame, LowStatus, Parameters, Scan, StatusReply, REPLY_LEN};
+use motus_ps1a_protocol::{
+    scan_reply, Command, CommandFrame, LowStatus, Parameters, Scan, StatusReply, REPLY_LEN,
+};
 use motus_serial::{BusError, BusMaster, FrameScan, Request};
 use std::sync::Arc;
 use std::time::Duration;
@@ -12,7 +14,9 @@ pub enum Ps1aError {
     #[error(transparent)]
     Bus(#[from] BusError),
     /// The module kept reporting a checksum error in our command (line noise).
-    #[error("module {addr} reported a checksum error in the command {attempts} time(s): the line is too noisy")]
+    #[error(
+        "module {addr} reported a checksum error in the command {attempts} time(s): the line is too noisy"
+    )]
     CommandCorrupted {
         /// Module address.
         addr: u8,
@@ -54,7 +58,12 @@ impl Ps1aBus {
         let frame = CommandFrame::new(addr, command);
         let len = frame.encode_into(&mut buf).unwrap_or(0);
         let bytes = buf.get(..len).unwrap_or(&[]);
-        let request = Request { device: u32::from(addr), bytes, reply_len: REPLY_LEN, idempotent: command.is_idempotent() };
+        let request = Request {
+            device: u32::from(addr),
+            bytes,
+            reply_len: REPLY_LEN,
+            idempotent: command.is_idempotent(),
+        };
         let attempts = 1 + self.master.config().retries;
         for _ in 0..attempts {
             let reply = self.master.transact(&request, &framing, |r: &StatusReply| r.addr == addr)?;
@@ -72,7 +81,8 @@ impl Ps1aBus {
         let mut found = Vec::new();
         for addr in addresses {
             let frame = CommandFrame::new(addr, Command::StatusRequest).encode();
-            let request = Request { device: u32::from(addr), bytes: &frame, reply_len: REPLY_LEN, idempotent: false };
+            let request =
+                Request { device: u32::from(addr), bytes: &frame, reply_len: REPLY_LEN, idempotent: false };
             if let Ok(reply) = self.master.transact(&request, &framing, |r: &StatusReply| r.addr == addr) {
                 found.push((addr, reply));
             }

@@ -1,6 +1,6 @@
 //! Integration over a real pty against the simulator, through the library (acceptance 3
 //! and 4 of the PS1A issue).
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 mod common;
 
@@ -85,11 +85,13 @@ fn jog_stops_at_the_maximum_position() {
     let _sim = Sim::start(&dir.path().join("line"), opts(&[5]));
     let bus = bus(&dir.path().join("line"), BusConfig::default());
     let mut a = prepare(&bus, 5, 30_000);
-    a.execute(&AxisCommand::Jog { direction: Direction::Positive, profile: MotionProfile::default() }).unwrap();
+    a.execute(&AxisCommand::Jog { direction: Direction::Positive, profile: MotionProfile::default() })
+        .unwrap();
     let s = wait_idle(&mut a);
     assert_eq!(s.position_raw, 30_000);
     assert!(s.faults.is_empty(), "{:?}", s.faults);
-    a.execute(&AxisCommand::Jog { direction: Direction::Negative, profile: MotionProfile::default() }).unwrap();
+    a.execute(&AxisCommand::Jog { direction: Direction::Negative, profile: MotionProfile::default() })
+        .unwrap();
     std::thread::sleep(Duration::from_millis(100));
     a.execute(&AxisCommand::Stop).unwrap();
     let s = wait_idle(&mut a);
@@ -104,8 +106,15 @@ fn status_bits_clear_after_being_reported() {
     let bus = bus(&dir.path().join("line"), BusConfig::default());
     let mut a = prepare(&bus, 6, 100_000);
     a.execute(&abs(90_000)).unwrap();
-    let err = motus_axis::wait_until(&mut a, "move", Duration::from_secs(30), Duration::from_millis(5), |s| !s.flags.moving, |_| {})
-        .unwrap_err();
+    let err = motus_axis::wait_until(
+        &mut a,
+        "move",
+        Duration::from_secs(30),
+        Duration::from_millis(5),
+        |s| !s.flags.moving,
+        |_| {},
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("limit switch"), "{err}");
     // The module reported bit 2 once; the next raw status has it cleared...
     let raw = bus.transact(6, Command::StatusRequest).unwrap();
@@ -170,7 +179,9 @@ fn sixteen_modules_on_one_line_are_independent() {
         assert_eq!(wait_idle(ax).position_raw, 1_000 + 7_919 * i as i64, "module {}", i + 1);
     }
     // Jog one, stop it; the others do not move.
-    axes[3].execute(&AxisCommand::Jog { direction: Direction::Positive, profile: MotionProfile::default() }).unwrap();
+    axes[3]
+        .execute(&AxisCommand::Jog { direction: Direction::Positive, profile: MotionProfile::default() })
+        .unwrap();
     std::thread::sleep(Duration::from_millis(50));
     axes[3].execute(&AxisCommand::Stop).unwrap();
     wait_idle(&mut axes[3]);
@@ -219,7 +230,11 @@ fn one_percent_corruption_never_gives_a_wrong_position_or_motion() {
                 Err(e) => panic!("{e}"),
             };
             readings += 1;
-            assert!((lo..=hi).contains(&s.position_raw), "implausible position {} during move {start} -> {target}", s.position_raw);
+            assert!(
+                (lo..=hi).contains(&s.position_raw),
+                "implausible position {} during move {start} -> {target}",
+                s.position_raw
+            );
             if !s.flags.moving {
                 assert_eq!(s.position_raw, target);
                 break;
@@ -234,7 +249,10 @@ fn one_percent_corruption_never_gives_a_wrong_position_or_motion() {
     let line = sim.stop();
     assert_eq!(line.modules()[0].actual_position().round() as i64, 64_000);
     assert_eq!(line.modules()[1].actual_position().round() as i64, b_pos);
-    assert!(stats.totals.corrupt_frames + stats.totals.timeouts > 0, "faults were injected and detected: {stats:?}");
+    assert!(
+        stats.totals.corrupt_frames + stats.totals.timeouts > 0,
+        "faults were injected and detected: {stats:?}"
+    );
     eprintln!("{readings} readings; bus stats {stats:?}");
 }
 

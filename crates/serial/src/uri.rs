@@ -56,7 +56,8 @@ pub enum UriError {
 impl FromStr for DeviceUri {
     type Err = UriError;
     fn from_str(s: &str) -> Result<Self, UriError> {
-        let url = url::Url::parse(s).map_err(|e| UriError::Syntax { uri: s.into(), reason: e.to_string() })?;
+        let url =
+            url::Url::parse(s).map_err(|e| UriError::Syntax { uri: s.into(), reason: e.to_string() })?;
         let mut path = url.path().to_string();
         if let Some(host) = url.host_str() {
             if !host.is_empty() {
@@ -109,7 +110,7 @@ impl DeviceUri {
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used)]
+    #![allow(clippy::panic, clippy::unwrap_used)]
     use super::*;
 
     #[test]

@@ -1,6 +1,6 @@
 //! The bus master over a real pseudo-terminal against a tiny responder thread: bytes
 //! cross the kernel's pty, time-outs and retries happen in real time.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use motus_serial::*;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -72,7 +72,10 @@ fn missing_device_times_out_in_time_and_line_keeps_serving() {
     let per_attempt = bus.timeout_for(2, 3);
     assert!(matches!(err, BusError::Timeout { attempts: 3, .. }), "{err}");
     assert!(took >= per_attempt * 3 && took < per_attempt * 3 + Duration::from_millis(60), "{took:?}");
-    let ok = bus.transact(&Request { device: 1, bytes: &[1, 1], reply_len: 3, idempotent: true }, &scan, |f| f.0 == 1);
+    let ok =
+        bus.transact(&Request { device: 1, bytes: &[1, 1], reply_len: 3, idempotent: true }, &scan, |f| {
+            f.0 == 1
+        });
     assert_eq!(ok.unwrap(), (1, 2));
     assert_eq!(bus.device_stats(9).failures, 1);
     stop.store(true, Ordering::Relaxed);

@@ -10,10 +10,12 @@ pub fn decode(format: FrameFormat, text: &str) -> Result<()> {
     let bytes = hex::parse(text)?;
     let json = match format {
         FrameFormat::Ps1aCmd => serde_json::to_string(
-            &CommandFrame::decode(&bytes).with_context(|| format!("invalid PS1A command {}", hex::format(&bytes)))?,
+            &CommandFrame::decode(&bytes)
+                .with_context(|| format!("invalid PS1A command {}", hex::format(&bytes)))?,
         )?,
         FrameFormat::Ps1aReply => serde_json::to_string(
-            &StatusReply::decode(&bytes).with_context(|| format!("invalid PS1A reply {}", hex::format(&bytes)))?,
+            &StatusReply::decode(&bytes)
+                .with_context(|| format!("invalid PS1A reply {}", hex::format(&bytes)))?,
         )?,
     };
     println!("{json}");
@@ -24,7 +26,9 @@ pub fn decode(format: FrameFormat, text: &str) -> Result<()> {
 pub fn encode(format: FrameFormat, json: &str) -> Result<()> {
     let bytes = match format {
         FrameFormat::Ps1aCmd => serde_json::from_str::<CommandFrame>(json)
-            .context("invalid PS1A command JSON (e.g. {\"addr\":3,\"command\":\"move_absolute\",\"target\":1000})")?
+            .context(
+                "invalid PS1A command JSON (e.g. {\"addr\":3,\"command\":\"move_absolute\",\"target\":1000})",
+            )?
             .encode(),
         FrameFormat::Ps1aReply => serde_json::from_str::<StatusReply>(json)
             .context("invalid PS1A reply JSON (e.g. {\"addr\":3,\"lbs\":0,\"hbs\":3,\"position\":1000})")?

@@ -25,7 +25,11 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let addresses: Vec<u8> = (1..=n).collect();
     let mut line = SimLine::new(
         Box::new(pty),
-        LineOptions { addresses: addresses.clone(), state_file: Some(dir.path().join("ps1a-state.json")), ..LineOptions::default() },
+        LineOptions {
+            addresses: addresses.clone(),
+            state_file: Some(dir.path().join("ps1a-state.json")),
+            ..LineOptions::default()
+        },
     )?;
     let sim_stop = Arc::new(AtomicBool::new(false));
     let sim_flag = sim_stop.clone();
@@ -38,9 +42,19 @@ pub fn run(a: DemoArgs) -> Result<()> {
     println!("scan found modules {found:?}");
     let mut axes = Vec::new();
     for &addr in &addresses {
-        let params = Parameters { address: addr, max_position: U24::new(200_000).unwrap_or(U24::MAX), ..Parameters::default() };
+        let params = Parameters {
+            address: addr,
+            max_position: U24::new(200_000).unwrap_or(U24::MAX),
+            ..Parameters::default()
+        };
         bus.write_parameters(addr, params)?;
-        let config = AxisConfig { addr, max_position: params.max_position, speed: 2000, scale: Scale::HUNDREDTH_MM, ..AxisConfig::default() };
+        let config = AxisConfig {
+            addr,
+            max_position: params.max_position,
+            speed: 2000,
+            scale: Scale::HUNDREDTH_MM,
+            ..AxisConfig::default()
+        };
         let mut axis = Ps1aAxis::new(bus.clone(), config);
         axis.execute(&AxisCommand::Enable)?;
         axis.execute(&AxisCommand::Home)?;
@@ -89,7 +103,14 @@ fn wait_all(axes: &mut [Ps1aAxis], what: &str, stop: &AtomicBool) -> Result<()> 
     let start = Instant::now();
     for axis in axes.iter_mut() {
         let left = Duration::from_secs(60).saturating_sub(start.elapsed());
-        wait_until(axis, what, left, Duration::from_millis(20), |s| !s.flags.moving || stop.load(Ordering::Relaxed), |_| {})?;
+        wait_until(
+            axis,
+            what,
+            left,
+            Duration::from_millis(20),
+            |s| !s.flags.moving || stop.load(Ordering::Relaxed),
+            |_| {},
+        )?;
     }
     Ok(())
 }

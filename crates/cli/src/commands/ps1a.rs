@@ -32,7 +32,9 @@ type Record = BTreeMap<String, Parameters>;
 fn load_record() -> Result<Record> {
     let path = record_path();
     match std::fs::read(&path) {
-        Ok(b) => serde_json::from_slice(&b).with_context(|| format!("invalid parameter record {}", path.display())),
+        Ok(b) => {
+            serde_json::from_slice(&b).with_context(|| format!("invalid parameter record {}", path.display()))
+        }
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Record::new()),
         Err(e) => Err(e).with_context(|| format!("cannot read {}", path.display())),
     }
@@ -43,7 +45,8 @@ fn save_record(r: &Record) -> Result<()> {
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir)?;
     }
-    std::fs::write(&path, serde_json::to_vec_pretty(r)?).with_context(|| format!("cannot write {}", path.display()))
+    std::fs::write(&path, serde_json::to_vec_pretty(r)?)
+        .with_context(|| format!("cannot write {}", path.display()))
 }
 
 fn key(port: &str, addr: u8) -> String {
@@ -67,7 +70,8 @@ pub fn run(p: Ps1aArgs) -> Result<()> {
             let bus = open(&p.port, p.baud, Duration::from_millis(margin_ms), 0)?;
             let found = bus.scan(parse_range(&range)?);
             if p.json {
-                let list: Vec<_> = found.iter().map(|(a, r)| serde_json::json!({"addr": a, "status": r})).collect();
+                let list: Vec<_> =
+                    found.iter().map(|(a, r)| serde_json::json!({"addr": a, "status": r})).collect();
                 println!("{}", serde_json::to_string(&list)?);
             } else if found.is_empty() {
                 println!("no PS1A module answered on {} in {range}", p.port);
@@ -82,7 +86,10 @@ pub fn run(p: Ps1aArgs) -> Result<()> {
             let record = load_record()?;
             let stored = record.get(&key(&p.port, addr));
             if p.json {
-                println!("{}", serde_json::to_string(&serde_json::json!({ "addr": addr, "written_by_motus": stored }))?);
+                println!(
+                    "{}",
+                    serde_json::to_string(&serde_json::json!({ "addr": addr, "written_by_motus": stored }))?
+                );
             } else {
                 match stored {
                     Some(params) => {
@@ -104,7 +111,10 @@ pub fn run(p: Ps1aArgs) -> Result<()> {
 
 fn set(port: &str, baud: u32, json: bool, s: ParamsSet) -> Result<()> {
     let mut record = load_record()?;
-    let mut params = record.get(&key(port, s.addr)).copied().unwrap_or(Parameters { address: s.addr, ..Parameters::default() });
+    let mut params = record
+        .get(&key(port, s.addr))
+        .copied()
+        .unwrap_or(Parameters { address: s.addr, ..Parameters::default() });
     if let Some(a) = s.new_addr {
         params.address = a;
     }
@@ -136,7 +146,8 @@ fn set(port: &str, baud: u32, json: bool, s: ParamsSet) -> Result<()> {
         bail!("--ds 0 would make every speed zero");
     }
     let bus = open(port, baud, Duration::from_millis(20), 2)?;
-    bus.write_parameters(s.addr, params).with_context(|| format!("writing parameters to module {}", s.addr))?;
+    bus.write_parameters(s.addr, params)
+        .with_context(|| format!("writing parameters to module {}", s.addr))?;
     record.remove(&key(port, s.addr));
     record.insert(key(port, params.address), params);
     save_record(&record)?;

@@ -81,9 +81,15 @@ pub fn axis(bus: &Ps1aBus, addr: u8, max: u32) -> Ps1aAxis {
 }
 
 pub fn wait_idle(axis: &mut dyn Axis) -> motus_axis::AxisState {
-    let motus_axis::WaitOutcome::Done(s) =
-        wait_until(axis, "motion", Duration::from_secs(60), Duration::from_millis(5), |s| !s.flags.moving, |_| {})
-            .unwrap();
+    let motus_axis::WaitOutcome::Done(s) = wait_until(
+        axis,
+        "motion",
+        Duration::from_secs(60),
+        Duration::from_millis(5),
+        |s| !s.flags.moving,
+        |_| {},
+    )
+    .unwrap();
     s
 }
 

@@ -84,7 +84,14 @@ struct Counters {
 
 impl Counters {
     fn new() -> Self {
-        Counters { since: Instant::now(), devices: BTreeMap::new(), bytes_tx: 0, bytes_rx: 0, garbage: 0, busy: Duration::ZERO }
+        Counters {
+            since: Instant::now(),
+            devices: BTreeMap::new(),
+            bytes_tx: 0,
+            bytes_rx: 0,
+            garbage: 0,
+            busy: Duration::ZERO,
+        }
     }
 }
 

@@ -49,7 +49,9 @@ impl Poller {
                     }
                 }
                 let next = tasks.iter().map(|(_, due, _)| *due).min();
-                let wait = next.map(|d| d.saturating_duration_since(Instant::now())).unwrap_or(Duration::from_millis(50));
+                let wait = next
+                    .map(|d| d.saturating_duration_since(Instant::now()))
+                    .unwrap_or(Duration::from_millis(50));
                 std::thread::sleep(wait.min(Duration::from_millis(50)));
             }
         })?;

@@ -44,7 +44,13 @@ impl<L: Link> FaultInjector<L> {
             corrupt_rate: config.corrupt_rate.clamp(0.0, 1.0),
             seed: config.seed,
         };
-        FaultInjector { inner, rng: SmallRng::seed_from_u64(config.seed), config, stats: FaultStats::default(), scratch: Vec::new() }
+        FaultInjector {
+            inner,
+            rng: SmallRng::seed_from_u64(config.seed),
+            config,
+            stats: FaultStats::default(),
+            scratch: Vec::new(),
+        }
     }
 
     /// What was injected so far.

@@ -90,13 +90,16 @@ impl Link for PtyLink {
         // Round sub-millisecond waits up so a short wait still waits.
         let ms = if ms == 0 && !timeout.is_zero() { 1 } else { ms };
         let mut fds = [PollFd::new(self.master.as_fd(), PollFlags::POLLIN)];
-        let ready = poll(&mut fds, PollTimeout::try_from(ms).unwrap_or(PollTimeout::MAX)).map_err(io::Error::from)?;
+        let ready =
+            poll(&mut fds, PollTimeout::try_from(ms).unwrap_or(PollTimeout::MAX)).map_err(io::Error::from)?;
         if ready == 0 {
             return Ok(0);
         }
         match self.master.read(buf) {
             Ok(n) => Ok(n),
-            Err(e) if e.kind() == io::ErrorKind::WouldBlock || e.kind() == io::ErrorKind::Interrupted => Ok(0),
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock || e.kind() == io::ErrorKind::Interrupted => {
+                Ok(0)
+            }
             Err(e) => Err(e),
         }
     }

@@ -24,7 +24,9 @@ fn open_port(path: &str, baud: u32) -> io::Result<TTYPort> {
         .flow_control(serialport::FlowControl::None)
         .timeout(Duration::from_millis(10))
         .open_native()
-        .map_err(|e| io::Error::new(io::ErrorKind::NotFound, format!("cannot open serial port {path}: {e}")))?;
+        .map_err(|e| {
+            io::Error::new(io::ErrorKind::NotFound, format!("cannot open serial port {path}: {e}"))
+        })?;
     port.clear(ClearBuffer::Input).map_err(io::Error::other)?;
     Ok(port)
 }
