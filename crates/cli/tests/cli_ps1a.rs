@@ -34,7 +34,15 @@ impl SimProcess {
     fn start(link: &Path, state: &Path, addrs: &str) -> SimProcess {
         use std::io::BufRead;
         let mut child = Command::new(MOTUS)
-            .args(["sim", "ps1a", "--link", &format!("pty:{}", link.display()), "--addr", addrs, "--state-file"])
+            .args([
+                "sim",
+                "ps1a",
+                "--link",
+                &format!("pty:{}", link.display()),
+                "--addr",
+                addrs,
+                "--state-file",
+            ])
             .arg(state)
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
@@ -69,7 +77,12 @@ fn decode_encode_round_trip_and_errors() {
     let rec = PathBuf::from("/nonexistent");
     let json = ok(&["decode", "ps1a-cmd", "03 03 04 E8 03 00 F5"], &rec);
     assert_eq!(json.trim(), r#"{"addr":3,"command":"move_absolute","target":1000}"#);
-    for hex in ["03 00 00 03", "01 03 05 18 FC FF 1C", "00 0B 01 00 27 00 00 FF FF 00 0A 08 05 08 50", "04 01 02 05 0C"] {
+    for hex in [
+        "03 00 00 03",
+        "01 03 05 18 FC FF 1C",
+        "00 0B 01 00 27 00 00 FF FF 00 0A 08 05 08 50",
+        "04 01 02 05 0C",
+    ] {
         let json = ok(&["decode", "ps1a-cmd", hex], &rec);
         assert_eq!(ok(&["encode", "ps1a-cmd", json.trim()], &rec).trim(), hex);
     }
@@ -83,22 +96,34 @@ fn decode_encode_round_trip_and_errors() {
     assert!(err.contains("unknown command code 11"), "{err}");
     let err = fails(&["decode", "ps1a-reply", "03 05 21"], &rec);
     assert!(err.contains("too short"), "{err}");
-    let err = fails(&["encode", "ps1a-cmd", r#"{"addr":3,"command":"set_speed","speed":10,"acceleration":11}"#], &rec);
+    let err = fails(
+        &["encode", "ps1a-cmd", r#"{"addr":3,"command":"set_speed","speed":10,"acceleration":11}"#],
+        &rec,
+    );
     assert!(err.contains("acceleration number 11"), "{err}");
 }
 
 #[test]
 fn simulator_process_scan_params_home_move_and_limits() {
     let dir = tempfile::tempdir().unwrap();
-    let (link, state, rec) = (dir.path().join("line"), dir.path().join("state.json"), dir.path().join("rec.json"));
+    let (link, state, rec) =
+        (dir.path().join("line"), dir.path().join("state.json"), dir.path().join("rec.json"));
     let _sim = SimProcess::start(&link, &state, "2,5,11");
     let port = link.to_str().unwrap();
     let out = ok(&["ps1a", port, "scan", "--range", "0-15", "--json"], &rec);
-    let found: Vec<u64> =
-        serde_json::from_str::<serde_json::Value>(&out).unwrap().as_array().unwrap().iter().map(|m| m["addr"].as_u64().unwrap()).collect();
+    let found: Vec<u64> = serde_json::from_str::<serde_json::Value>(&out)
+        .unwrap()
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["addr"].as_u64().unwrap())
+        .collect();
     assert_eq!(found, vec![2, 5, 11]);
 
-    ok(&["ps1a", port, "params", "set", "--addr", "5", "--max", "40000", "--vnrb", "200", "--vnnb", "20"], &rec);
+    ok(
+        &["ps1a", port, "params", "set", "--addr", "5", "--max", "40000", "--vnrb", "200", "--vnnb", "20"],
+        &rec,
+    );
     let got = ok(&["ps1a", port, "params", "get", "--addr", "5", "--json"], &rec);
     assert!(got.contains(r#""max_position":40000"#), "{got}");
 
@@ -127,10 +152,14 @@ fn simulator_process_scan_params_home_move_and_limits() {
 #[test]
 fn killing_the_simulator_mid_motion_is_detected_and_motion_refused_until_homed() {
     let dir = tempfile::tempdir().unwrap();
-    let (link, state, rec) = (dir.path().join("line"), dir.path().join("state.json"), dir.path().join("rec.json"));
+    let (link, state, rec) =
+        (dir.path().join("line"), dir.path().join("state.json"), dir.path().join("rec.json"));
     let sim = SimProcess::start(&link, &state, "1");
     let port = link.to_str().unwrap();
-    ok(&["ps1a", port, "params", "set", "--addr", "1", "--max", "900000", "--vnrb", "200", "--vnnb", "20"], &rec);
+    ok(
+        &["ps1a", port, "params", "set", "--addr", "1", "--max", "900000", "--vnrb", "200", "--vnnb", "20"],
+        &rec,
+    );
     let uri = format!("ps1a://{port}?addr=1&max=900000&speed=300");
     ok(&["axis", &uri, "enable"], &rec);
     ok(&["axis", &uri, "home", "--wait"], &rec);
@@ -149,7 +178,10 @@ fn killing_the_simulator_mid_motion_is_detected_and_motion_refused_until_homed()
     let out = waiter.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "the waiting move must not report success");
-    assert!(err.contains("reset") || err.contains("communication") || err.contains("no valid reply"), "{err}");
+    assert!(
+        err.contains("reset") || err.contains("communication") || err.contains("no valid reply"),
+        "{err}"
+    );
     let status = ok(&["axis", &uri, "status", "--json"], &rec);
     let s: serde_json::Value = serde_json::from_str(&status).unwrap();
     assert_eq!(s["state"]["flags"]["homed"], false, "{status}");

@@ -66,7 +66,8 @@ pub fn open_bus(uri: &DeviceUri) -> Result<Ps1aBus, Box<dyn std::error::Error + 
 /// The axis configuration from a URI.
 pub fn axis_config(uri: &DeviceUri) -> Result<AxisConfig, UriError> {
     uri.check_known(URI_PARAMS)?;
-    let addr = uri.get::<u8>("addr")?.ok_or(UriError::Missing { uri: uri.path.clone(), name: "addr".into() })?;
+    let addr =
+        uri.get::<u8>("addr")?.ok_or(UriError::Missing { uri: uri.path.clone(), name: "addr".into() })?;
     let mut c = AxisConfig { addr, ..AxisConfig::default() };
     let kind = match uri.params.get("kind").map(String::as_str) {
         None | Some("linear") => UnitKind::Linear,

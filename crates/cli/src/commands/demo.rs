@@ -40,6 +40,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let bus = Ps1aBus::new(Arc::new(BusMaster::new(Box::new(link), BusConfig::default())));
     let found: Vec<u8> = bus.scan(0..=16).into_iter().map(|(a, _)| a).collect();
     println!("scan found modules {found:?}");
+    bus.master().reset_stats();
     let mut axes = Vec::new();
     for &addr in &addresses {
         let params = Parameters {
