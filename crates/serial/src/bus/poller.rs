@@ -78,3 +78,33 @@ impl Drop for PollerHandle {
         self.shutdown();
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use std::sync::atomic::AtomicU32;
+
+    #[test]
+    fn tasks_run_at_their_periods_until_stopped() {
+        let fast = Arc::new(AtomicU32::new(0));
+        let slow = Arc::new(AtomicU32::new(0));
+        let (f, s) = (fast.clone(), slow.clone());
+        let handle = Poller::new()
+            .every(Duration::from_millis(10), move || {
+                f.fetch_add(1, Ordering::Relaxed);
+            })
+            .every(Duration::from_millis(100), move || {
+                s.fetch_add(1, Ordering::Relaxed);
+            })
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(350));
+        handle.stop();
+        let (f, s) = (fast.load(Ordering::Relaxed), slow.load(Ordering::Relaxed));
+        assert!((20..=40).contains(&f), "fast task ran {f} times");
+        assert!((3..=5).contains(&s), "slow task ran {s} times");
+        std::thread::sleep(Duration::from_millis(50));
+        assert_eq!(fast.load(Ordering::Relaxed), f, "stopped");
+    }
+}
