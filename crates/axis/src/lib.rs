@@ -16,6 +16,7 @@
 
 mod command;
 mod error;
+pub mod profile;
 mod state;
 mod units;
 mod wait;

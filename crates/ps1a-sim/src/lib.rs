@@ -17,7 +17,6 @@ mod line;
 mod machine;
 mod module;
 mod state_file;
-pub mod trajectory;
 
 pub use line::{LineOptions, SimLine};
 pub use machine::MachineConfig;

@@ -13,7 +13,7 @@
 //! * Stop (9) stops any motion, not only a jog. Switching the power stage off aborts motion.
 
 use crate::machine::MachineConfig;
-use crate::trajectory::Plan;
+use motus_axis::profile::Plan;
 use motus_ps1a_protocol::units::{acceleration_units_per_s2, velocity_units_per_s};
 use motus_ps1a_protocol::{Acceleration, Command, HighStatus, LowStatus, Parameters, StatusReply, U24};
 use std::time::Duration;

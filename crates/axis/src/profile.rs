@@ -1,5 +1,6 @@
 //! One-dimensional trapezoidal trajectories with constant-acceleration segments, planned
-//! from any initial position and velocity. The DDA samples them once per cycle.
+//! from any initial position and velocity (simulators' trajectory generators and host-side
+//! position loops sample them), and normalised profiles for synchronised multi-axis moves.
 
 /// One constant-acceleration segment.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -113,6 +114,29 @@ impl Plan {
     }
 }
 
+/// A normalised profile `s(t)` from 0 to 1 such that every axis `i` moving by `d_i` along
+/// `x_i(t) = x0_i + d_i * s(t)` stays within its velocity and acceleration limits, and all
+/// axes arrive together. `limits` holds `(distance, vmax, acc)` per axis; axes with zero
+/// distance are ignored. Returns `None` if no axis moves or a limit is not positive.
+pub fn synchronised(limits: &[(f64, f64, f64)]) -> Option<Plan> {
+    let mut sv = f64::INFINITY;
+    let mut sa = f64::INFINITY;
+    for &(d, v, a) in limits {
+        if d == 0.0 {
+            continue;
+        }
+        if !(v > 0.0 && a > 0.0 && d.is_finite()) {
+            return None;
+        }
+        sv = sv.min(v / d.abs());
+        sa = sa.min(a / d.abs());
+    }
+    if !sv.is_finite() {
+        return None;
+    }
+    Some(Plan::to_target(0.0, 0.0, 1.0, sv, sa))
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::panic, clippy::unwrap_used)]
@@ -135,6 +159,16 @@ mod tests {
         // Stops at 50 first, then comes back to 10.
         assert!((p.sample(1.0).0 - 50.0).abs() < 1e-9);
         assert_eq!(p.target(), 10.0);
+    }
+
+    #[test]
+    fn synchronised_axes_arrive_together_within_limits() {
+        let s = synchronised(&[(10.0, 5.0, 10.0), (-40.0, 5.0, 10.0), (0.0, 1.0, 1.0)]).unwrap();
+        // The 40-unit axis sets the pace: 40 units at 5/s, 10/s^2 takes 8.5 s.
+        assert!((s.duration() - 8.5).abs() < 1e-9);
+        let (_, v) = s.sample(4.0);
+        assert!((v * 40.0 - 5.0).abs() < 1e-9);
+        assert!(synchronised(&[(0.0, 1.0, 1.0)]).is_none());
     }
 
     proptest! {

@@ -1,0 +1,432 @@
+//! One communication module (CM) with its Faulhaber controller and joint (`specs/kv01.md`):
+//! D0 pass-through with the LSSTOP / restricted-mode filter, D1 brake and limit switch (on
+//! 0xE6: current limitation), D2 fast message, D3 resolver, D4 voltages, D5 gripper, the
+//! short messages "UC"/"TO", the limit-switch stop and the 700 ms safety time-out.
+//!
+//! Time is injected: [`Module::advance_to`] runs whole fixed steps up to the `now` it is
+//! given; [`Module::respond`] advances first, then answers, and says how long after the
+//! request the reply is due ([`TimedReply::delay`]: module turnaround, plus the exchange
+//! with the controller for D0).
+//!
+//! Choices where the source is silent:
+//! - Only the `V` command is a "speed command" the filter blocks (parsed like the
+//!   controller does, so `v 500` and `0V500` count).
+//! - A D1 byte the module does not know (0xC0/0xC1 on joints, 0xB*/0xA* on the gripper),
+//!   D5 on joints, D0/D2 without data, and any other command code are answered "UC".
+//! - D2 forwards its text without waiting for the controller's answer (that is what makes
+//!   it fast): the reply comes after the turnaround, even with a slow or unreachable
+//!   controller. A blocked D2 speed command is answered per [`D2Refusal`].
+//! - 0xA0 leaves restricted mode and clears LSSTOP when the switch is released; while it
+//!   is pressed, 0xA0 changes nothing (the reply shows the unchanged bits).
+//! - Every rising edge of a switch stops the joint, in restricted mode too.
+//! - A power cycle re-arms everything; a joint found on its switch at power-on starts in
+//!   LSSTOP. The "TO" state is latched until then (the spec does not say how to leave it).
+//! - On the gripper module the D3 status bit "brake released" is the open/close motor's
+//!   software brake (BRAKE); the other three bits are 0.
+
+use std::time::Duration;
+
+use motus_kv01_protocol::{
+    faulhaber, Address, Answer, Command, D1Action, JointStatus, Reply, ReplyBody, Request, ResolverReading,
+    ShortCode,
+};
+use motus_serial::LineSettings;
+use rand::rngs::SmallRng;
+use rand::SeedableRng;
+
+use crate::config::{millis, ArmConfig, CmConfig, D2Refusal, JointConfig, Side, SupplyConfig};
+use crate::controller::Controller;
+use crate::error::SimError;
+use crate::gripper::{Gripper, GripperState};
+use crate::joint::Joint;
+use crate::{resolver, supply};
+
+/// A reply and when it is due, counted from the end of the request.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TimedReply {
+    /// The reply.
+    pub reply: Reply,
+    /// Module processing (and controller exchange) time before the reply starts.
+    pub delay: Duration,
+}
+
+/// Faults injected into one module.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ModuleFaults {
+    /// Extra controller processing time: beyond the module's wait, D0 answers "TIMEOUT".
+    pub controller_delay: Duration,
+    /// The module hears nothing (disconnected): no reply, no safety-timer reset.
+    pub deaf: bool,
+}
+
+/// A snapshot of a module, for tests and status displays.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModuleState {
+    /// The module's address.
+    pub address: Address,
+    /// True joint angle, degrees (not wrapped).
+    pub angle_deg: f64,
+    /// Joint speed, deg/s.
+    pub velocity_deg_s: f64,
+    /// Motor speed, rpm.
+    pub motor_rpm: f64,
+    /// The controller's power stage is on.
+    pub drive_enabled: bool,
+    /// The brake is released (joints 1-5).
+    pub brake_released: bool,
+    /// The switch pressed, if any.
+    pub limit_switch: Option<Side>,
+    /// LSSTOP: speed commands are blocked.
+    pub lsstop: bool,
+    /// Restricted mode.
+    pub restricted_mode: bool,
+    /// The safety time-out has tripped (latched until a power cycle).
+    pub timed_out: bool,
+    /// The controller's limit-switch program runs.
+    pub program_running: bool,
+    /// The controller's speed target, rpm.
+    pub target_rpm: i32,
+    /// The raw resolver reading (what D3 reports).
+    pub resolver_raw: u16,
+    /// The gripper's open/close drive (module 0xE6 only).
+    pub gripper: Option<GripperState>,
+}
+
+/// One communication module, its controller and its joint.
+#[derive(Debug, Clone)]
+pub struct Module {
+    address: Address,
+    joint_config: JointConfig,
+    cm: CmConfig,
+    supply: SupplyConfig,
+    step: Duration,
+    controller: Controller,
+    joint: Joint,
+    gripper: Option<Gripper>,
+    brake_released: bool,
+    lsstop: bool,
+    restricted: bool,
+    switch_was_pressed: bool,
+    /// The controller's last speed demand (`None`: power stage off), for the current.
+    demand: Option<f64>,
+    last_message: Option<Duration>,
+    timed_out: bool,
+    time: Duration,
+    rng: SmallRng,
+    faults: ModuleFaults,
+}
+
+impl Module {
+    /// Powers the module at `address` on at time `now` with the arm's configuration
+    /// (checked with [`ArmConfig::validate`]).
+    pub fn new(address: Address, config: &ArmConfig, now: Duration) -> Result<Module, SimError> {
+        config.validate()?;
+        let n = address.joint_number();
+        let joint_config = config.joints.get(usize::from(n) - 1).copied().ok_or(SimError::NoSuchJoint(n))?;
+        // Critically damped positioning: gain = 1 / (4 tau) in increments per second.
+        let counts_per_s_per_rpm = joint_config.encoder_counts_per_rev / 60.0;
+        let gain = 1000.0 / (4.0 * joint_config.speed_loop_tau_ms) / counts_per_s_per_rpm;
+        let serial = config.controller.first_serial.wrapping_add(u32::from(n) - 1);
+        let mut m = Module {
+            address,
+            joint_config,
+            cm: config.cm,
+            supply: config.supply,
+            step: config.step(),
+            controller: Controller::new(&config.controller, gain, serial),
+            joint: Joint::new(joint_config),
+            gripper: address.is_gripper().then(|| Gripper::new(config.gripper)),
+            brake_released: false,
+            lsstop: false,
+            restricted: false,
+            switch_was_pressed: false,
+            demand: None,
+            last_message: None,
+            timed_out: false,
+            time: now,
+            rng: SmallRng::seed_from_u64(config.seed ^ u64::from(address.raw())),
+            faults: ModuleFaults::default(),
+        };
+        m.power_cycle();
+        Ok(m)
+    }
+
+    /// The module's address.
+    #[must_use]
+    pub fn address(&self) -> Address {
+        self.address
+    }
+
+    /// The simulated time the module has advanced to.
+    #[must_use]
+    pub fn now(&self) -> Duration {
+        self.time
+    }
+
+    /// A snapshot of everything a test may check.
+    #[must_use]
+    pub fn state(&self) -> ModuleState {
+        ModuleState {
+            address: self.address,
+            angle_deg: self.joint.angle(),
+            velocity_deg_s: self.joint.velocity(),
+            motor_rpm: self.joint.motor_rpm(),
+            drive_enabled: self.controller.enabled(),
+            brake_released: self.brake_released,
+            limit_switch: self.joint.switch(),
+            lsstop: self.lsstop,
+            restricted_mode: self.restricted,
+            timed_out: self.timed_out,
+            program_running: self.controller.program_running(),
+            target_rpm: self.controller.target_rpm(),
+            resolver_raw: self.resolver_raw(),
+            gripper: self.gripper.as_ref().map(Gripper::state),
+        }
+    }
+
+    /// True joint angle, degrees.
+    #[must_use]
+    pub fn joint_angle(&self) -> f64 {
+        self.joint.angle()
+    }
+
+    /// Pitch of the link this joint moves (gravity of the next joint).
+    pub(crate) fn pitch(&self) -> f64 {
+        self.joint.pitch()
+    }
+
+    /// Sets the pitch of the link carrying this joint (the arm chains joints 2 and 3).
+    pub(crate) fn set_base_pitch(&mut self, deg: f64) {
+        self.joint.set_base_pitch(deg);
+    }
+
+    /// The injected faults, to change.
+    pub fn faults_mut(&mut self) -> &mut ModuleFaults {
+        &mut self.faults
+    }
+
+    /// Power off and on: controller back to its saved settings and disabled, brake
+    /// engaged, restricted mode and the safety time-out cleared (the only way out of "TO"),
+    /// LSSTOP set if the joint is on a switch. The joint stays where it is.
+    pub fn power_cycle(&mut self) {
+        self.joint.stop();
+        self.demand = None;
+        self.controller.power_cycle(self.joint.counts());
+        self.brake_released = false;
+        self.restricted = false;
+        self.switch_was_pressed = self.joint.switch().is_some();
+        self.lsstop = self.switch_was_pressed;
+        self.last_message = None;
+        self.timed_out = false;
+        if let Some(g) = &mut self.gripper {
+            g.power_cycle();
+        }
+    }
+
+    /// Test hook: puts the joint just beyond its `side` switch (0.5° past it, at rest), as
+    /// if pushed there; the module reacts at the next step.
+    pub fn push_onto_switch(&mut self, side: Side) -> Result<(), SimError> {
+        let joint = self.address.joint_number();
+        let [lo, hi] = self.joint_config.switch_positions_deg().ok_or(SimError::NoLimitSwitch { joint })?;
+        self.joint.place(match side {
+            Side::Lower => lo - 0.5,
+            Side::Upper => hi + 0.5,
+        });
+        Ok(())
+    }
+
+    /// Test hook: puts the joint at `deg`, at rest (end stops apply; a switch reached this
+    /// way stops the joint at the next step).
+    pub fn set_joint_angle(&mut self, deg: f64) {
+        self.joint.place(deg);
+    }
+
+    /// Test hook (gripper module): an object between the jaws at `opening` (0..=1), or none.
+    pub fn set_gripper_object(&mut self, opening: Option<f64>) -> Result<(), SimError> {
+        let joint = self.address.joint_number();
+        self.gripper.as_mut().ok_or(SimError::NoGripper { joint })?.set_object(opening);
+        Ok(())
+    }
+
+    /// Runs whole steps up to `now`.
+    pub fn advance_to(&mut self, now: Duration) {
+        while self.time + self.step <= now {
+            self.step();
+        }
+    }
+
+    /// Runs exactly one step.
+    pub(crate) fn step(&mut self) {
+        self.time += self.step;
+        self.check_safety_timeout(self.time);
+        let dt = self.step.as_secs_f64();
+        let limits = self.controller.current_limits();
+        let drive = self.joint.drive(None, limits);
+        self.demand = self.controller.demand(dt, &drive);
+        self.joint.step(dt, self.demand, !self.brake_released);
+        if let Some(g) = &mut self.gripper {
+            g.step(dt);
+        }
+        let pressed = self.joint.switch();
+        if pressed.is_some() && !self.switch_was_pressed {
+            tracing::info!(address = %self.address, ?pressed, angle = self.joint.angle(), "limit switch: LSSTOP");
+            self.controller.disable();
+            self.brake_released = false;
+            self.lsstop = true;
+        }
+        self.switch_was_pressed = pressed.is_some();
+    }
+
+    fn check_safety_timeout(&mut self, now: Duration) {
+        let Some(last) = self.last_message else { return };
+        if !self.timed_out && now.saturating_sub(last) >= millis(self.cm.safety_timeout_ms) {
+            tracing::warn!(address = %self.address, "safety time-out: drive disabled, brake engaged");
+            self.timed_out = true;
+            self.controller.disable();
+            self.brake_released = false;
+            if let Some(g) = &mut self.gripper {
+                g.stop();
+            }
+        }
+    }
+
+    /// Answers `request` at time `now` (advancing first); `None` when it is not for this
+    /// module or the module is deaf.
+    pub fn handle(&mut self, request: &Request, now: Duration) -> Option<Reply> {
+        self.respond(request, now).map(|r| r.reply)
+    }
+
+    /// Like [`Self::handle`], with the time the reply is due after the request.
+    pub fn respond(&mut self, request: &Request, now: Duration) -> Option<TimedReply> {
+        if request.address != self.address {
+            return None;
+        }
+        self.advance_to(now);
+        self.check_safety_timeout(now);
+        if self.faults.deaf {
+            return None;
+        }
+        let turnaround = millis(self.cm.turnaround_ms);
+        if self.timed_out {
+            return Some(self.timed(ReplyBody::Short { text: ShortCode::Timeout }, turnaround));
+        }
+        self.last_message = Some(now);
+        let uc = ReplyBody::Short { text: ShortCode::UnknownCommand };
+        let (body, delay) = match &request.command {
+            Command::Faulhaber { text } if text.is_empty() => (uc, turnaround),
+            Command::Fast { text } if text.is_empty() => (uc, turnaround),
+            Command::Faulhaber { text } => match self.refusal(text) {
+                Some(answer) => (ReplyBody::Faulhaber { answer }, turnaround),
+                None => {
+                    let (answer, wait) = self.forward(text);
+                    (ReplyBody::Faulhaber { answer }, turnaround + wait)
+                }
+            },
+            Command::Fast { text } => match (self.refusal(text), self.cm.d2_refusal) {
+                (Some(answer), D2Refusal::Answer) => (ReplyBody::Faulhaber { answer }, turnaround),
+                (Some(_), D2Refusal::Resolver) => (ReplyBody::FastResolver(self.reading()), turnaround),
+                (None, _) => {
+                    self.forward(text);
+                    (ReplyBody::FastResolver(self.reading()), turnaround)
+                }
+            },
+            Command::BrakeLimit(action) => (self.d1(*action).unwrap_or(uc), turnaround),
+            Command::ReadResolver => (ReplyBody::Resolver(self.reading()), turnaround),
+            Command::ReadVoltages => (ReplyBody::Voltages(supply::measure(&self.supply, &mut self.rng)), turnaround),
+            Command::Gripper { speed, opening } => match &mut self.gripper {
+                Some(g) => {
+                    g.command(*speed, *opening);
+                    (ReplyBody::Gripper(g.load()), turnaround)
+                }
+                None => (uc, turnaround),
+            },
+            Command::Other { .. } => (uc, turnaround),
+        };
+        Some(self.timed(body, delay))
+    }
+
+    fn timed(&self, body: ReplyBody, delay: Duration) -> TimedReply {
+        TimedReply { reply: Reply::new(self.address, body), delay }
+    }
+
+    /// The module's own answer to a speed command it blocks, if it does.
+    fn refusal(&self, text: &str) -> Option<Answer> {
+        let rpm = faulhaber::Request::parse(text).ok()?.velocity()?;
+        if self.restricted {
+            (rpm.unsigned_abs() > self.cm.restricted_rpm.unsigned_abs()).then_some(Answer::LimVal)
+        } else {
+            self.lsstop.then_some(Answer::LsStop)
+        }
+    }
+
+    /// Sends `text` to the controller; its answer (or "TIMEOUT") and the time the exchange
+    /// took, from the end of the host's request.
+    fn forward(&mut self, text: &str) -> (Answer, Duration) {
+        let link = LineSettings::n81(self.cm.controller_baud);
+        let request_time = link.wire_time(text.chars().count() + 1);
+        let answer = if self.controller.listens_at(self.cm.controller_baud) {
+            let drive = self.joint.drive(self.demand, self.controller.current_limits());
+            self.controller.execute(text, &drive)
+        } else {
+            None
+        };
+        let wait = millis(self.cm.controller_wait_ms);
+        let latency = millis(self.cm.controller_latency_ms) + self.faults.controller_delay;
+        match answer {
+            Some(a) => {
+                let answer_time = latency + link.wire_time(a.chars().count() + 2);
+                if answer_time <= wait {
+                    return (Answer::parse(&a), request_time + answer_time);
+                }
+                (Answer::Timeout, request_time + wait)
+            }
+            None => (Answer::Timeout, request_time + wait),
+        }
+    }
+
+    fn joint_status(&self) -> JointStatus {
+        if let Some(g) = &self.gripper {
+            return JointStatus { brake_released: g.status().brake_released, ..JointStatus::default() };
+        }
+        JointStatus {
+            brake_released: self.brake_released,
+            limit_switch: self.joint.switch().is_some(),
+            lsstop: self.lsstop,
+            restricted_mode: self.restricted,
+        }
+    }
+
+    fn resolver_raw(&self) -> u16 {
+        let c = &self.joint_config;
+        resolver::raw_from_angle(self.joint.angle(), c.resolver_offset_deg, c.resolver_bits)
+    }
+
+    fn reading(&self) -> ResolverReading {
+        ResolverReading { position: self.resolver_raw(), status: self.joint_status() }
+    }
+
+    /// D1: the status reply, or `None` for a byte this module does not know ("UC").
+    fn d1(&mut self, action: D1Action) -> Option<ReplyBody> {
+        if let Some(g) = &mut self.gripper {
+            match action {
+                D1Action::EnableCurrentLimit => g.set_current_limit(true),
+                D1Action::DisableCurrentLimit => g.set_current_limit(false),
+                _ => return None,
+            }
+            return Some(ReplyBody::GripperStatus(g.status()));
+        }
+        match action {
+            D1Action::ReleaseBrake => self.brake_released = true,
+            D1Action::EngageBrake => self.brake_released = false,
+            D1Action::EnterRestrictedMode => self.restricted = true,
+            D1Action::LeaveRestrictedMode => {
+                if self.joint.switch().is_none() {
+                    self.restricted = false;
+                    self.lsstop = false;
+                }
+            }
+            _ => return None,
+        }
+        Some(ReplyBody::Status(self.joint_status()))
+    }
+}
