@@ -1,0 +1,209 @@
+//! The control thread: one message to every module per cycle. A moving joint gets a D2
+//! fast message (speed command + position in one round trip) from a host-side position
+//! loop following its profile; an idle joint gets D3 (position) — both keep the module's
+//! 700 ms safety time-out from tripping.
+
+use crate::arm::{ArmConfig, JointState};
+use crate::bus::{Kv01Bus, Kv01Error};
+use crate::joints::{normalise_deg, JointSpec};
+use motus_axis::profile::Plan;
+use motus_kv01_protocol::{Address, Command, JointStatus, ReplyBody};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+/// A joint following a (normalised, shared) profile: `x(t) = x0 + d * s(t)`.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Motion {
+    pub start: Instant,
+    pub plan: Plan,
+    pub x0: f64,
+    pub d: f64,
+    pub settled_at: Option<Instant>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Reading {
+    pub raw: u16,
+    pub angle: f64,
+    pub status: JointStatus,
+    pub at: Instant,
+}
+
+/// What the host knows of one joint.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct JointRuntime {
+    pub reading: Option<Reading>,
+    pub enabled: bool,
+    pub motion: Option<Motion>,
+    pub override_rpm: Option<f64>,
+    pub fault: Option<String>,
+    pub timeout_latched: Option<String>,
+    pub last_ok: Option<Instant>,
+    pub longest_gap: Duration,
+    pub commanded_rpm: f64,
+}
+
+impl JointRuntime {
+    pub fn snapshot(&self, joint: u8) -> JointState {
+        let r = self.reading;
+        JointState {
+            joint,
+            angle_deg: r.map(|r| r.angle).unwrap_or(f64::NAN),
+            raw: r.map(|r| r.raw).unwrap_or(0),
+            status: r.map(|r| r.status).unwrap_or_default(),
+            enabled: self.enabled,
+            moving: self.motion.is_some() || self.override_rpm.is_some_and(|v| v != 0.0),
+            fault: self.timeout_latched.clone().or_else(|| self.fault.clone()),
+            age: r.map(|r| r.at.elapsed()).unwrap_or(Duration::MAX),
+            longest_gap: self.longest_gap,
+        }
+    }
+
+    pub fn latch_timeout(&mut self, e: &Kv01Error) {
+        if self.timeout_latched.is_none() {
+            tracing::error!("{e}");
+            self.timeout_latched = Some(e.to_string());
+        }
+        self.enabled = false;
+        self.motion = None;
+        self.override_rpm = None;
+    }
+
+    fn record_ok(&mut self, now: Instant) {
+        if let Some(prev) = self.last_ok {
+            self.longest_gap = self.longest_gap.max(now - prev);
+        }
+        self.last_ok = Some(now);
+    }
+}
+
+pub(crate) struct State {
+    pub config: ArmConfig,
+    pub joints: [JointRuntime; 6],
+}
+
+pub(crate) struct Shared(Mutex<State>);
+
+impl Shared {
+    pub fn new(config: ArmConfig) -> Self {
+        Shared(Mutex::new(State { config, joints: Default::default() }))
+    }
+    pub fn lock(&self) -> MutexGuard<'_, State> {
+        self.0.lock().unwrap_or_else(|p| p.into_inner())
+    }
+}
+
+/// The speed command for one joint this cycle, or `None` to just read it.
+fn speed_command(spec: &JointSpec, r: &mut JointRuntime, config: &ArmConfig, now: Instant) -> Option<f64> {
+    let reading = r.reading?;
+    let angle = reading.angle;
+    if let Some(rpm) = r.override_rpm {
+        // Jog at a fixed speed: stop at the soft limit before the switch.
+        let deg_s = rpm * spec.deg_s_per_rpm();
+        let margin = 0.5 + deg_s.abs() * config.cycle.as_secs_f64() * 2.0;
+        if let Some((lo, hi)) = spec.soft_limits_deg {
+            if (deg_s > 0.0 && angle >= hi - margin) || (deg_s < 0.0 && angle <= lo + margin) {
+                r.override_rpm = None;
+                return Some(0.0);
+            }
+        }
+        return Some(rpm);
+    }
+    let m = r.motion.as_mut()?;
+    let t = now.saturating_duration_since(m.start).as_secs_f64();
+    let (s, sv) = m.plan.sample(t);
+    let x_ref = m.x0 + m.d * s;
+    let v_ref = m.d * sv;
+    let err = if spec.soft_limits_deg.is_none() { normalise_deg(x_ref - angle) } else { x_ref - angle };
+    if t >= m.plan.duration() {
+        if err.abs() <= config.tolerance_deg {
+            r.motion = None;
+            return Some(0.0);
+        }
+        let since = *m.settled_at.get_or_insert(now);
+        if now - since > config.settle_timeout {
+            r.motion = None;
+            r.fault = Some(format!("did not reach {x_ref:.3} deg (stopped at {angle:.3} deg)"));
+            return Some(0.0);
+        }
+    }
+    if !spec.within_soft_limits(angle)
+        && (err * v_ref > 0.0 || v_ref == 0.0)
+        && spec.within_soft_limits(x_ref)
+    {
+        // Measured beyond a soft limit while the reference is inside: keep correcting.
+    } else if !spec.within_soft_limits(angle) {
+        r.motion = None;
+        r.fault = Some(format!("stopped at {angle:.3} deg: beyond the soft limits"));
+        return Some(0.0);
+    }
+    let deg_s = (v_ref + config.kp * err).clamp(-spec.max_deg_s(), spec.max_deg_s());
+    Some(spec.rpm_for(deg_s))
+}
+
+/// The control loop; returns when `stop` is set.
+pub(crate) fn run(bus: &Kv01Bus, shared: &Shared, stop: &AtomicBool) {
+    let mut next = Instant::now();
+    while !stop.load(Ordering::Relaxed) {
+        for joint in 1u8..=6 {
+            let Some(addr) = Address::joint(joint) else { continue };
+            let i = usize::from(joint - 1);
+            let (command, spec) = {
+                let mut st = shared.lock();
+                let config = st.config.clone();
+                let Some(spec) = config.joints.get(i).copied() else { continue };
+                let Some(r) = st.joints.get_mut(i) else { continue };
+                let cmd = if r.enabled && r.timeout_latched.is_none() {
+                    speed_command(&spec, r, &config, Instant::now())
+                } else {
+                    None
+                };
+                if let Some(rpm) = cmd {
+                    r.commanded_rpm = rpm;
+                }
+                (cmd, spec)
+            };
+            let request = match command {
+                Some(rpm) => Command::Fast { text: format!("V{}", rpm.round() as i64) },
+                None => Command::ReadResolver,
+            };
+            let result = bus.transact(addr, request);
+            let now = Instant::now();
+            let mut st = shared.lock();
+            let Some(r) = st.joints.get_mut(i) else { continue };
+            match result {
+                Ok(body) => {
+                    r.record_ok(now);
+                    if let Some(res) = body.resolver() {
+                        r.reading = Some(Reading {
+                            raw: res.position,
+                            angle: spec.angle_deg(res.position),
+                            status: res.status,
+                            at: now,
+                        });
+                        if res.status.lsstop && (r.motion.is_some() || r.override_rpm.is_some()) {
+                            r.motion = None;
+                            r.override_rpm = None;
+                            r.fault =
+                                Some("the module stopped the joint on its limit switch (LSSTOP)".into());
+                        }
+                    }
+                    if let ReplyBody::Faulhaber { answer } = &body {
+                        tracing::warn!(joint, %answer, "speed command answered instead of a resolver reading");
+                    }
+                }
+                Err(e @ Kv01Error::SafetyTimeout { .. }) => r.latch_timeout(&e),
+                Err(e) => tracing::debug!(joint, error = %e, "cycle transaction failed"),
+            }
+        }
+        let cycle = shared.lock().config.cycle;
+        next += cycle;
+        let now = Instant::now();
+        if next > now {
+            std::thread::sleep(next - now);
+        } else {
+            next = now;
+        }
+    }
+}

@@ -1,0 +1,23 @@
+//! # motus-kv01 — the KV-01 arm driver
+//!
+//! * [`Kv01Bus`]: KV-01 transactions on the serial bus master; "TO" and "UC" are typed
+//!   errors, reply CRCs strict by default.
+//! * [`Kv01Arm`]: one control thread keeps all six modules alive (one message each per
+//!   cycle, far inside the 700 ms safety time-out), moves joints with a host-side position
+//!   loop using D2 (speed command and position in one round trip), enforces the safe
+//!   order (EN before brake release; brake before DI), the soft limits, and synchronised
+//!   multi-joint moves.
+//! * [`JointSpec`]: the spec's offset and limit table, gear and sign per joint.
+
+#![forbid(unsafe_code)]
+
+mod arm;
+mod bus;
+mod controller;
+mod framing;
+mod joints;
+
+pub use arm::{ArmConfig, ArmError, JointState, Kv01Arm};
+pub use bus::{Kv01Bus, Kv01Error};
+pub use framing::scan_reply;
+pub use joints::{normalise_deg, JointSpec, SPEC_OFFSETS_DEG, SPEC_SOFT_LIMITS_DEG};
