@@ -42,6 +42,9 @@ pub(crate) struct JointRuntime {
     pub last_ok: Option<Instant>,
     pub longest_gap: Duration,
     pub commanded_rpm: f64,
+    /// A limit-switch recovery runs: LSSTOP does not abort its motion, and the soft-limit
+    /// stop of jogs is off (the joint starts beyond it).
+    pub recovering: bool,
 }
 
 impl JointRuntime {
@@ -99,6 +102,9 @@ fn speed_command(spec: &JointSpec, r: &mut JointRuntime, config: &ArmConfig, now
     let reading = r.reading?;
     let angle = reading.angle;
     if let Some(rpm) = r.override_rpm {
+        if r.recovering {
+            return Some(rpm);
+        }
         // Jog at a fixed speed: stop at the soft limit before the switch.
         let deg_s = rpm * spec.deg_s_per_rpm();
         let margin = 0.5 + deg_s.abs() * config.cycle.as_secs_f64() * 2.0;
@@ -182,7 +188,10 @@ pub(crate) fn run(bus: &Kv01Bus, shared: &Shared, stop: &AtomicBool) {
                             status: res.status,
                             at: now,
                         });
-                        if res.status.lsstop && (r.motion.is_some() || r.override_rpm.is_some()) {
+                        if res.status.lsstop
+                            && !r.recovering
+                            && (r.motion.is_some() || r.override_rpm.is_some())
+                        {
                             r.motion = None;
                             r.override_rpm = None;
                             r.fault =
