@@ -24,6 +24,12 @@ pub enum Command {
         format: FrameFormat,
         /// Hex bytes, e.g. "03 00 00 03" or 03000003.
         hex: String,
+        /// CRC checking (KV-01): strict rejects a bad CRC; lenient accepts it and reports it.
+        #[arg(long, value_enum, default_value = "strict")]
+        crc: CrcArg,
+        /// Direction (KV-01): auto guesses from the frame's shape.
+        #[arg(long, value_enum, default_value = "auto")]
+        direction: DirectionArg,
     },
     /// Encode one frame given as JSON; prints uppercase hex bytes.
     Encode {
@@ -50,6 +56,28 @@ pub enum FrameFormat {
     Ps1aCmd,
     /// PS1A status reply, module -> host.
     Ps1aReply,
+    /// KV-01 message, either direction.
+    Kv01,
+}
+
+/// CRC checking of received frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CrcArg {
+    /// Reject a bad CRC, showing the expected and received value.
+    Strict,
+    /// Accept a bad CRC but report it.
+    Lenient,
+}
+
+/// Direction of a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DirectionArg {
+    /// Guess from the frame's shape.
+    Auto,
+    /// Host -> device.
+    ToDevice,
+    /// Device -> host.
+    FromDevice,
 }
 
 /// Simulators.

@@ -1,12 +1,12 @@
 //! `motus decode` and `motus encode`.
 
-use crate::cli::FrameFormat;
+use crate::cli::{CrcArg, DirectionArg, FrameFormat};
 use crate::hex;
 use anyhow::{Context, Result};
 use motus_ps1a_protocol::{CommandFrame, StatusReply};
 
 /// Decodes and prints one JSON object.
-pub fn decode(format: FrameFormat, text: &str) -> Result<()> {
+pub fn decode(format: FrameFormat, text: &str, crc: CrcArg, direction: DirectionArg) -> Result<()> {
     let bytes = hex::parse(text)?;
     let json = match format {
         FrameFormat::Ps1aCmd => serde_json::to_string(
@@ -17,6 +17,27 @@ pub fn decode(format: FrameFormat, text: &str) -> Result<()> {
             &StatusReply::decode(&bytes)
                 .with_context(|| format!("invalid PS1A reply {}", hex::format(&bytes)))?,
         )?,
+        FrameFormat::Kv01 => {
+            use motus_kv01_protocol::{decode_message, CrcMode, Direction};
+            let mode = match crc {
+                CrcArg::Strict => CrcMode::Strict,
+                CrcArg::Lenient => CrcMode::Lenient,
+            };
+            let dir = match direction {
+                DirectionArg::Auto => Direction::Auto,
+                DirectionArg::ToDevice => Direction::ToModule,
+                DirectionArg::FromDevice => Direction::FromModule,
+            };
+            let decoded = decode_message(&bytes, dir, mode)
+                .with_context(|| format!("invalid KV-01 message {}", hex::format(&bytes)))?;
+            if let Some(m) = &decoded.crc_mismatch {
+                eprintln!(
+                    "warning: CRC mismatch accepted (lenient mode): expected 0x{:02X}, received 0x{:02X}",
+                    m.expected, m.received
+                );
+            }
+            serde_json::to_string(&decoded)?
+        }
     };
     println!("{json}");
     Ok(())
@@ -34,6 +55,12 @@ pub fn encode(format: FrameFormat, json: &str) -> Result<()> {
             .context("invalid PS1A reply JSON (e.g. {\"addr\":3,\"lbs\":0,\"hbs\":3,\"position\":1000})")?
             .to_bytes()
             .to_vec(),
+        FrameFormat::Kv01 => {
+            let decoded: motus_kv01_protocol::Decoded = serde_json::from_str(json).context(
+                "invalid KV-01 JSON (e.g. {\"direction\":\"to_module\",\"address\":226,\"command\":\"d0\",\"text\":\"EN\"})",
+            )?;
+            decoded.message.encode().context("cannot encode the KV-01 message")?
+        }
     };
     println!("{}", hex::format(&bytes));
     Ok(())

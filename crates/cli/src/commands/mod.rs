@@ -12,7 +12,7 @@ use anyhow::Result;
 /// Runs one command.
 pub fn run(command: Command) -> Result<()> {
     match command {
-        Command::Decode { format, hex } => codec::decode(format, &hex),
+        Command::Decode { format, hex, crc, direction } => codec::decode(format, &hex, crc, direction),
         Command::Encode { format, json } => codec::encode(format, &json),
         Command::Sim(s) => sim::run(s),
         Command::Axis(a) => axis::run(a),
