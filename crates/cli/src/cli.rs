@@ -45,6 +45,8 @@ pub enum Command {
     Axis(AxisArgs),
     /// PS1A line tools: scan for modules, parameters.
     Ps1a(Ps1aArgs),
+    /// KV-01 arm: joints, voltages, brakes, Faulhaber pass-through, limit recovery, gripper.
+    Kv01(Kv01Args),
     /// Start simulated devices and run them through a demonstration sequence.
     Demo(DemoArgs),
 }
@@ -265,6 +267,111 @@ pub struct ParamsSet {
     /// ANNB: zero-pulse approach acceleration number 1..10.
     #[arg(long)]
     pub annb: Option<u8>,
+}
+
+/// Options of `motus kv01`.
+#[derive(Debug, Args)]
+pub struct Kv01Args {
+    /// Serial port (or simulator pty link) of the arm's interface box.
+    pub port: String,
+    /// Baud rate.
+    #[arg(long, default_value_t = 115_200, global = true)]
+    pub baud: u32,
+    /// Reply CRC checking.
+    #[arg(long, value_enum, default_value = "strict", global = true)]
+    pub crc: CrcArg,
+    /// Print JSON.
+    #[arg(long, global = true)]
+    pub json: bool,
+    /// What to do.
+    #[command(subcommand)]
+    pub action: Kv01Action,
+}
+
+/// KV-01 actions.
+#[derive(Debug, Clone, Subcommand)]
+pub enum Kv01Action {
+    /// Read all six joint angles and status bits in one call.
+    Joints,
+    /// Read the supply voltages of one module (or all).
+    Voltages {
+        /// Joint 1..6 (all if omitted).
+        joint: Option<u8>,
+    },
+    /// Enable a joint's drive ("EN") and release its brake, in the safe order.
+    Enable {
+        /// Joint 1..6.
+        joint: u8,
+    },
+    /// Engage a joint's brake and disable its drive ("DI"), in the safe order.
+    Disable {
+        /// Joint 1..6.
+        joint: u8,
+    },
+    /// Brake on (engage) or off (release; refused before "EN").
+    Brake {
+        /// Joint 1..5.
+        joint: u8,
+        /// on = engaged, off = released.
+        state: OnOff,
+    },
+    /// Send a Faulhaber ASCII command through D0 and print the answer.
+    Faulhaber {
+        /// Joint 1..6.
+        joint: u8,
+        /// The command, e.g. "GN" or "V100".
+        command: String,
+    },
+    /// Move joints to angles together, e.g. `move 2=30 3=-45.5`.
+    #[command(allow_negative_numbers = true)]
+    Move {
+        /// JOINT=DEGREES pairs.
+        targets: Vec<String>,
+        /// Joint velocity (deg/s).
+        #[arg(long)]
+        velocity: Option<f64>,
+        /// Joint acceleration (deg/s^2).
+        #[arg(long)]
+        acceleration: Option<f64>,
+    },
+    /// Drive a joint out of its limit switch with the documented procedure.
+    RecoverLimit {
+        /// Joint 1, 2, 3 or 5.
+        joint: u8,
+        /// + or -: the direction back into the working zone.
+        #[arg(long, allow_hyphen_values = true)]
+        direction: String,
+    },
+    /// Gripper: open, close (speed 0..31), or rotate to an angle in degrees.
+    Gripper {
+        /// open, close or rotate.
+        op: GripperOp,
+        /// Speed 0..31 for open/close (default 16); angle in degrees for rotate.
+        #[arg(allow_negative_numbers = true)]
+        value: Option<f64>,
+    },
+    /// Keep the arm alive and read commands (the actions above, one per line) from stdin.
+    Session,
+}
+
+/// Brake state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum OnOff {
+    /// Engaged.
+    On,
+    /// Released.
+    Off,
+}
+
+/// Gripper operations.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum GripperOp {
+    /// Open.
+    Open,
+    /// Close.
+    Close,
+    /// Rotate to an angle.
+    Rotate,
 }
 
 /// Options of `motus demo`.

@@ -12,7 +12,19 @@ pub fn open(uri_text: &str) -> Result<Box<dyn Axis>> {
     let uri: DeviceUri = uri_text.parse()?;
     match uri.scheme.as_str() {
         "ps1a" => Ok(Box::new(motus_ps1a::open_axis(&uri).map_err(|e| anyhow::anyhow!("{e}"))?)),
-        other => bail!("unknown device family {other:?} in {uri_text:?} (supported: ps1a)"),
+        "kv01" => {
+            uri.check_known(&["joint", "baud", "crc"])?;
+            let joint = uri.get::<u8>("joint")?.context("kv01 URIs need ?joint=1..6")?;
+            let baud = uri.get::<u32>("baud")?.unwrap_or(115_200);
+            let crc = match uri.params.get("crc").map(String::as_str) {
+                None | Some("strict") => crate::cli::CrcArg::Strict,
+                Some("lenient") => crate::cli::CrcArg::Lenient,
+                Some(other) => bail!("crc={other}: expected strict or lenient"),
+            };
+            let arm = super::kv01::open_arm(&uri.path, baud, crc)?;
+            Ok(Box::new(motus_kv01::Kv01JointAxis::new(arm, joint)?))
+        }
+        other => bail!("unknown device family {other:?} in {uri_text:?} (supported: ps1a, kv01)"),
     }
 }
 

@@ -3,6 +3,7 @@
 mod axis;
 mod codec;
 mod demo;
+mod kv01;
 mod ps1a;
 mod sim;
 
@@ -17,6 +18,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Sim(s) => sim::run(s),
         Command::Axis(a) => axis::run(a),
         Command::Ps1a(p) => ps1a::run(p),
+        Command::Kv01(k) => kv01::run(k),
         Command::Demo(d) => demo::run(d),
     }
 }
