@@ -21,8 +21,8 @@ impl Kv01JointAxis {
     pub fn new(arm: Arc<Kv01Arm>, joint: u8) -> Result<Self, ArmError> {
         crate::arm::address(joint)?;
         let name = format!("kv01:{}#joint{joint}", arm.bus().master().describe());
-        // One "device unit" of this axis is a degree.
-        let scale = Scale::new(UnitKind::Rotary, std::f64::consts::PI / 180.0)
+        // One "device unit" of this axis is a millidegree of joint angle.
+        let scale = Scale::new(UnitKind::Rotary, std::f64::consts::PI / 180_000.0)
             .map_err(|e| ArmError::Unsafe { joint, reason: e.to_string() })?;
         Ok(Kv01JointAxis { arm, joint, name, scale })
     }
@@ -93,7 +93,7 @@ impl Axis for Kv01JointAxis {
         }
         Ok(AxisState {
             position: s.angle_deg.to_radians(),
-            position_raw: i64::from(s.raw),
+            position_raw: (s.angle_deg * 1000.0).round() as i64,
             velocity: None,
             current: None,
             following_error: None,

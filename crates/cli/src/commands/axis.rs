@@ -140,7 +140,7 @@ pub fn run(a: AxisArgs) -> Result<()> {
         progress.finish();
         let WaitOutcome::Done(state) = res?;
         if let Some(t) = target_raw {
-            if state.position_raw != t {
+            if !state.flags.target_reached {
                 bail!("{}: motion ended at {} instead of the target {t}", axis.name(), state.position_raw);
             }
         }
