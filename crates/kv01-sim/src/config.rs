@@ -410,10 +410,8 @@ impl ArmConfig {
         }
         let g = &self.gripper;
         let opening_ok = |x: f64| (0.0..=1.0).contains(&x);
-        if !(g.full_stroke_s.is_finite() && g.full_stroke_s > 0.0)
-            || !opening_ok(g.initial_opening)
-            || !g.object_opening.map_or(true, opening_ok)
-        {
+        let stroke_ok = g.full_stroke_s.is_finite() && g.full_stroke_s > 0.0;
+        if !(stroke_ok && opening_ok(g.initial_opening) && g.object_opening.map_or(true, opening_ok)) {
             return Err(SimError::Config("gripper: full_stroke_s > 0, openings within 0..=1".into()));
         }
         Ok(())

@@ -128,9 +128,9 @@ impl Joint {
         }
         let k = self.config.deg_s_per_rpm();
         let gravity = self.gravity_accel() * k.signum();
-        let friction = if self.motor_rpm.abs() > STALL_RPM { FRICTION_MA.copysign(self.motor_rpm) } else { 0.0 };
-        let current =
-            friction + self.motor_accel * INERTIA_MA_PER_RPM_S - gravity * GRAVITY_MA_PER_DEG_S2;
+        let friction =
+            if self.motor_rpm.abs() > STALL_RPM { FRICTION_MA.copysign(self.motor_rpm) } else { 0.0 };
+        let current = friction + self.motor_accel * INERTIA_MA_PER_RPM_S - gravity * GRAVITY_MA_PER_DEG_S2;
         current.clamp(-peak, peak)
     }
 
@@ -157,7 +157,8 @@ impl Joint {
         self.stalled = false;
         if braked && self.config.brake {
             let dv = self.config.brake_decel_deg_s2 * dt;
-            self.velocity = if self.velocity.abs() <= dv { 0.0 } else { self.velocity - dv.copysign(self.velocity) };
+            self.velocity =
+                if self.velocity.abs() <= dv { 0.0 } else { self.velocity - dv.copysign(self.velocity) };
             self.motor_rpm = self.velocity / k;
             self.stalled = pushing;
         } else if let Some(d) = demand {

@@ -52,7 +52,8 @@ impl Controller {
             Query::CurrentLimit => i64::from(s.continuous_current),
             Query::Temperature => {
                 let (_, continuous) = self.current_limits();
-                let load = if continuous > 0.0 { (drive.current_ma / continuous).abs().min(2.0) } else { 0.0 };
+                let load =
+                    if continuous > 0.0 { (drive.current_ma / continuous).abs().min(2.0) } else { 0.0 };
                 (25.0 + 20.0 * load * load).round() as i64
             }
             Query::OperationStatus => i64::from(self.operation_status(drive)),

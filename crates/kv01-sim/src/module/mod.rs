@@ -1,7 +1,6 @@
 //! One communication module (CM) with its Faulhaber controller and joint (`specs/kv01.md`):
-//! D0 pass-through with the LSSTOP / restricted-mode filter, D1 brake and limit switch (on
-//! 0xE6: current limitation), D2 fast message, D3 resolver, D4 voltages, D5 gripper, the
-//! short messages "UC"/"TO", the limit-switch stop and the 700 ms safety time-out.
+//! its state, the fixed simulation step, the limit-switch stop, the 700 ms safety time-out,
+//! power cycling and the test hooks. What it answers to each command is in [`commands`].
 //!
 //! Time is injected: [`Module::advance_to`] runs whole fixed steps up to the `now` it is
 //! given; [`Module::respond`] advances first, then answers, and says how long after the
@@ -9,37 +8,27 @@
 //! with the controller for D0).
 //!
 //! Choices where the source is silent:
-//! - Only the `V` command is a "speed command" the filter blocks (parsed like the
-//!   controller does, so `v 500` and `0V500` count).
-//! - A D1 byte the module does not know (0xC0/0xC1 on joints, 0xB*/0xA* on the gripper),
-//!   D5 on joints, D0/D2 without data, and any other command code are answered "UC".
-//! - D2 forwards its text without waiting for the controller's answer (that is what makes
-//!   it fast): the reply comes after the turnaround, even with a slow or unreachable
-//!   controller. A blocked D2 speed command is answered per [`D2Refusal`].
-//! - 0xA0 leaves restricted mode and clears LSSTOP when the switch is released; while it
-//!   is pressed, 0xA0 changes nothing (the reply shows the unchanged bits).
-//! - Every rising edge of a switch stops the joint, in restricted mode too.
+//! - Every rising edge of a switch stops the joint (drive disabled, brake engaged,
+//!   LSSTOP), in restricted mode too.
+//! - The safety timer starts with the first correct message addressed to this module;
+//!   messages to other modules do not count.
 //! - A power cycle re-arms everything; a joint found on its switch at power-on starts in
 //!   LSSTOP. The "TO" state is latched until then (the spec does not say how to leave it).
-//! - On the gripper module the D3 status bit "brake released" is the open/close motor's
-//!   software brake (BRAKE); the other three bits are 0.
 
 use std::time::Duration;
 
-use motus_kv01_protocol::{
-    faulhaber, Address, Answer, Command, D1Action, JointStatus, Reply, ReplyBody, Request, ResolverReading,
-    ShortCode,
-};
-use motus_serial::LineSettings;
+use motus_kv01_protocol::{Address, Reply};
 use rand::rngs::SmallRng;
 use rand::SeedableRng;
 
-use crate::config::{millis, ArmConfig, CmConfig, D2Refusal, JointConfig, Side, SupplyConfig};
+use crate::config::{millis, ArmConfig, CmConfig, JointConfig, Side, SupplyConfig};
 use crate::controller::Controller;
 use crate::error::SimError;
 use crate::gripper::{Gripper, GripperState};
 use crate::joint::Joint;
-use crate::{resolver, supply};
+use crate::resolver;
+
+mod commands;
 
 /// A reply and when it is due, counted from the end of the request.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -84,6 +73,8 @@ pub struct ModuleState {
     pub timed_out: bool,
     /// The controller's limit-switch program runs.
     pub program_running: bool,
+    /// The controller's answer mode (`ANSW`).
+    pub answer_mode: u8,
     /// The controller's speed target, rpm.
     pub target_rpm: i32,
     /// The raw resolver reading (what D3 reports).
@@ -123,7 +114,8 @@ impl Module {
         config.validate()?;
         let n = address.joint_number();
         let joint_config = config.joints.get(usize::from(n) - 1).copied().ok_or(SimError::NoSuchJoint(n))?;
-        // Critically damped positioning: gain = 1 / (4 tau) in increments per second.
+        // Positioning critically damped with the speed loop: the position loop's own pole
+        // is 1 / (4 tau); the gain is in rpm per increment of error.
         let counts_per_s_per_rpm = joint_config.encoder_counts_per_rev / 60.0;
         let gain = 1000.0 / (4.0 * joint_config.speed_loop_tau_ms) / counts_per_s_per_rpm;
         let serial = config.controller.first_serial.wrapping_add(u32::from(n) - 1);
@@ -178,6 +170,7 @@ impl Module {
             restricted_mode: self.restricted,
             timed_out: self.timed_out,
             program_running: self.controller.program_running(),
+            answer_mode: self.controller.answer_mode(),
             target_rpm: self.controller.target_rpm(),
             resolver_raw: self.resolver_raw(),
             gripper: self.gripper.as_ref().map(Gripper::state),
@@ -290,143 +283,8 @@ impl Module {
         }
     }
 
-    /// Answers `request` at time `now` (advancing first); `None` when it is not for this
-    /// module or the module is deaf.
-    pub fn handle(&mut self, request: &Request, now: Duration) -> Option<Reply> {
-        self.respond(request, now).map(|r| r.reply)
-    }
-
-    /// Like [`Self::handle`], with the time the reply is due after the request.
-    pub fn respond(&mut self, request: &Request, now: Duration) -> Option<TimedReply> {
-        if request.address != self.address {
-            return None;
-        }
-        self.advance_to(now);
-        self.check_safety_timeout(now);
-        if self.faults.deaf {
-            return None;
-        }
-        let turnaround = millis(self.cm.turnaround_ms);
-        if self.timed_out {
-            return Some(self.timed(ReplyBody::Short { text: ShortCode::Timeout }, turnaround));
-        }
-        self.last_message = Some(now);
-        let uc = ReplyBody::Short { text: ShortCode::UnknownCommand };
-        let (body, delay) = match &request.command {
-            Command::Faulhaber { text } if text.is_empty() => (uc, turnaround),
-            Command::Fast { text } if text.is_empty() => (uc, turnaround),
-            Command::Faulhaber { text } => match self.refusal(text) {
-                Some(answer) => (ReplyBody::Faulhaber { answer }, turnaround),
-                None => {
-                    let (answer, wait) = self.forward(text);
-                    (ReplyBody::Faulhaber { answer }, turnaround + wait)
-                }
-            },
-            Command::Fast { text } => match (self.refusal(text), self.cm.d2_refusal) {
-                (Some(answer), D2Refusal::Answer) => (ReplyBody::Faulhaber { answer }, turnaround),
-                (Some(_), D2Refusal::Resolver) => (ReplyBody::FastResolver(self.reading()), turnaround),
-                (None, _) => {
-                    self.forward(text);
-                    (ReplyBody::FastResolver(self.reading()), turnaround)
-                }
-            },
-            Command::BrakeLimit(action) => (self.d1(*action).unwrap_or(uc), turnaround),
-            Command::ReadResolver => (ReplyBody::Resolver(self.reading()), turnaround),
-            Command::ReadVoltages => (ReplyBody::Voltages(supply::measure(&self.supply, &mut self.rng)), turnaround),
-            Command::Gripper { speed, opening } => match &mut self.gripper {
-                Some(g) => {
-                    g.command(*speed, *opening);
-                    (ReplyBody::Gripper(g.load()), turnaround)
-                }
-                None => (uc, turnaround),
-            },
-            Command::Other { .. } => (uc, turnaround),
-        };
-        Some(self.timed(body, delay))
-    }
-
-    fn timed(&self, body: ReplyBody, delay: Duration) -> TimedReply {
-        TimedReply { reply: Reply::new(self.address, body), delay }
-    }
-
-    /// The module's own answer to a speed command it blocks, if it does.
-    fn refusal(&self, text: &str) -> Option<Answer> {
-        let rpm = faulhaber::Request::parse(text).ok()?.velocity()?;
-        if self.restricted {
-            (rpm.unsigned_abs() > self.cm.restricted_rpm.unsigned_abs()).then_some(Answer::LimVal)
-        } else {
-            self.lsstop.then_some(Answer::LsStop)
-        }
-    }
-
-    /// Sends `text` to the controller; its answer (or "TIMEOUT") and the time the exchange
-    /// took, from the end of the host's request.
-    fn forward(&mut self, text: &str) -> (Answer, Duration) {
-        let link = LineSettings::n81(self.cm.controller_baud);
-        let request_time = link.wire_time(text.chars().count() + 1);
-        let answer = if self.controller.listens_at(self.cm.controller_baud) {
-            let drive = self.joint.drive(self.demand, self.controller.current_limits());
-            self.controller.execute(text, &drive)
-        } else {
-            None
-        };
-        let wait = millis(self.cm.controller_wait_ms);
-        let latency = millis(self.cm.controller_latency_ms) + self.faults.controller_delay;
-        match answer {
-            Some(a) => {
-                let answer_time = latency + link.wire_time(a.chars().count() + 2);
-                if answer_time <= wait {
-                    return (Answer::parse(&a), request_time + answer_time);
-                }
-                (Answer::Timeout, request_time + wait)
-            }
-            None => (Answer::Timeout, request_time + wait),
-        }
-    }
-
-    fn joint_status(&self) -> JointStatus {
-        if let Some(g) = &self.gripper {
-            return JointStatus { brake_released: g.status().brake_released, ..JointStatus::default() };
-        }
-        JointStatus {
-            brake_released: self.brake_released,
-            limit_switch: self.joint.switch().is_some(),
-            lsstop: self.lsstop,
-            restricted_mode: self.restricted,
-        }
-    }
-
     fn resolver_raw(&self) -> u16 {
         let c = &self.joint_config;
         resolver::raw_from_angle(self.joint.angle(), c.resolver_offset_deg, c.resolver_bits)
-    }
-
-    fn reading(&self) -> ResolverReading {
-        ResolverReading { position: self.resolver_raw(), status: self.joint_status() }
-    }
-
-    /// D1: the status reply, or `None` for a byte this module does not know ("UC").
-    fn d1(&mut self, action: D1Action) -> Option<ReplyBody> {
-        if let Some(g) = &mut self.gripper {
-            match action {
-                D1Action::EnableCurrentLimit => g.set_current_limit(true),
-                D1Action::DisableCurrentLimit => g.set_current_limit(false),
-                _ => return None,
-            }
-            return Some(ReplyBody::GripperStatus(g.status()));
-        }
-        match action {
-            D1Action::ReleaseBrake => self.brake_released = true,
-            D1Action::EngageBrake => self.brake_released = false,
-            D1Action::EnterRestrictedMode => self.restricted = true,
-            D1Action::LeaveRestrictedMode => {
-                if self.joint.switch().is_none() {
-                    self.restricted = false;
-                    self.lsstop = false;
-                }
-            }
-            _ => return None,
-        }
-        Some(ReplyBody::Status(self.joint_status()))
     }
 }
