@@ -87,6 +87,37 @@ pub enum DirectionArg {
 pub enum SimCommand {
     /// Simulated PS1A modules on one line.
     Ps1a(SimPs1aArgs),
+    /// The simulated KV-01 arm: six communication modules on one line.
+    Kv01(SimKv01Args),
+}
+
+/// Options of `motus sim kv01`.
+#[derive(Debug, Args)]
+pub struct SimKv01Args {
+    /// Where to serve: `pty:PATH` or `serial:DEVICE`.
+    #[arg(long)]
+    pub link: String,
+    /// Bytes take their real wire time at --baud.
+    #[arg(long)]
+    pub baud_pacing: bool,
+    /// Nominal baud rate of the line.
+    #[arg(long, default_value_t = 115_200)]
+    pub baud: u32,
+    /// Probability of dropping a reply (0..1).
+    #[arg(long, default_value_t = 0.0)]
+    pub drop_rate: f64,
+    /// Probability of corrupting each byte, in both directions (0..1).
+    #[arg(long, default_value_t = 0.0)]
+    pub corrupt_rate: f64,
+    /// Faulhaber controllers answer this late (ms): the modules answer "TIMEOUT".
+    #[arg(long)]
+    pub slow_controller_ms: Option<u64>,
+    /// Seed of the fault injection and the measurement noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Arm configuration (JSON of the simulator's ArmConfig).
+    #[arg(long)]
+    pub arm: Option<String>,
 }
 
 /// Options of `motus sim ps1a`.

@@ -236,9 +236,19 @@ impl Kv01Arm {
     }
 
     fn d1(&self, joint: u8, action: D1Action) -> Result<ReplyBody, ArmError> {
-        self.bus
-            .transact(address(joint)?, Command::BrakeLimit(action))
-            .map_err(|e| self.note_bus_error(joint, e))
+        let body =
+            self.bus.transact(address(joint)?, Command::BrakeLimit(action)).map_err(|e| self.note_bus_error(joint, e))?;
+        if let ReplyBody::Status(status) = &body {
+            // The reply carries the new status bits: use them now, not one cycle later.
+            let status = *status;
+            self.runtime(joint, |r| {
+                if let Some(reading) = &mut r.reading {
+                    reading.status = status;
+                }
+                r.status_set_at = Some(Instant::now());
+            })?;
+        }
+        Ok(body)
     }
 
     /// Enables the drive's speed loop ("EN"). The brake stays as it is.

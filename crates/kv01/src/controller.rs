@@ -45,6 +45,8 @@ pub(crate) struct JointRuntime {
     /// A limit-switch recovery runs: LSSTOP does not abort its motion, and the soft-limit
     /// stop of jogs is off (the joint starts beyond it).
     pub recovering: bool,
+    /// When a D1 reply last set the status bits: older resolver replies do not overwrite them.
+    pub status_set_at: Option<Instant>,
 }
 
 impl JointRuntime {
@@ -174,6 +176,7 @@ pub(crate) fn run(bus: &Kv01Bus, shared: &Shared, stop: &AtomicBool) {
                 Some(rpm) => Command::Fast { text: format!("V{}", rpm.round() as i64) },
                 None => Command::ReadResolver,
             };
+            let sent_at = Instant::now();
             let result = bus.transact(addr, request);
             let now = Instant::now();
             let mut st = shared.lock();
@@ -182,12 +185,13 @@ pub(crate) fn run(bus: &Kv01Bus, shared: &Shared, stop: &AtomicBool) {
                 Ok(body) => {
                     r.record_ok(now);
                     if let Some(res) = body.resolver() {
-                        r.reading = Some(Reading {
-                            raw: res.position,
-                            angle: spec.angle_deg(res.position),
-                            status: res.status,
-                            at: now,
-                        });
+                        // A D1 answered while this request was on the line is newer.
+                        let status = match (r.status_set_at, r.reading) {
+                            (Some(t), Some(old)) if t > sent_at => old.status,
+                            _ => res.status,
+                        };
+                        r.reading =
+                            Some(Reading { raw: res.position, angle: spec.angle_deg(res.position), status, at: now });
                         if res.status.lsstop
                             && !r.recovering
                             && (r.motion.is_some() || r.override_rpm.is_some())

@@ -1,6 +1,6 @@
 //! `motus sim ...`.
 
-use crate::cli::{SimCommand, SimPs1aArgs};
+use crate::cli::{SimCommand, SimKv01Args, SimPs1aArgs};
 use anyhow::{bail, Context, Result};
 use motus_ps1a_sim::{LineOptions, MachineConfig, SimLine};
 use motus_serial::{FaultConfig, LineSettings, Link, PtyLink, SerialLink};
@@ -10,6 +10,7 @@ use std::path::Path;
 pub fn run(cmd: SimCommand) -> Result<()> {
     match cmd {
         SimCommand::Ps1a(args) => ps1a(args),
+        SimCommand::Kv01(args) => kv01(args),
     }
 }
 
@@ -48,6 +49,31 @@ fn ps1a(a: SimPs1aArgs) -> Result<()> {
     let mut line = SimLine::new(link, options)?;
     let stop = super::stop_flag()?;
     eprintln!("simulating PS1A modules at addresses {:?}; Ctrl-C to stop", a.addr);
+    line.run(&stop)?;
+    Ok(())
+}
+
+fn kv01(a: SimKv01Args) -> Result<()> {
+    for (name, rate) in [("--drop-rate", a.drop_rate), ("--corrupt-rate", a.corrupt_rate)] {
+        if !(0.0..=1.0).contains(&rate) {
+            bail!("{name} must be between 0 and 1, got {rate}");
+        }
+    }
+    let arm = match &a.arm {
+        Some(json) => motus_kv01_sim::ArmConfig::from_json(json).map_err(|e| anyhow::anyhow!("invalid --arm: {e}"))?,
+        None => motus_kv01_sim::ArmConfig::default(),
+    };
+    let link = open_sim_link(&a.link, a.baud)?;
+    let options = motus_kv01_sim::LineOptions {
+        baud_pacing: a.baud_pacing,
+        faults: FaultConfig { drop_rate: a.drop_rate, corrupt_rate: a.corrupt_rate, seed: a.seed },
+        slow_controller: a.slow_controller_ms.map(std::time::Duration::from_millis),
+        arm,
+    }
+    .seeded(a.seed);
+    let mut line = motus_kv01_sim::SimLine::new(link, options)?;
+    let stop = super::stop_flag()?;
+    eprintln!("simulating the KV-01 arm (modules 0xE1..0xE6); the 700 ms time-out latches until restart; Ctrl-C to stop");
     line.run(&stop)?;
     Ok(())
 }
