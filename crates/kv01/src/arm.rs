@@ -236,8 +236,10 @@ impl Kv01Arm {
     }
 
     fn d1(&self, joint: u8, action: D1Action) -> Result<ReplyBody, ArmError> {
-        let body =
-            self.bus.transact(address(joint)?, Command::BrakeLimit(action)).map_err(|e| self.note_bus_error(joint, e))?;
+        let body = self
+            .bus
+            .transact(address(joint)?, Command::BrakeLimit(action))
+            .map_err(|e| self.note_bus_error(joint, e))?;
         if let ReplyBody::Status(status) = &body {
             // The reply carries the new status bits: use them now, not one cycle later.
             let status = *status;
@@ -381,8 +383,22 @@ impl Kv01Arm {
         Ok(())
     }
 
+    /// Jogs a joint at `deg_s` (signed): a move to its soft limit in that direction (so it
+    /// decelerates and stops before the limit), or a constant speed for endless joints.
+    pub fn jog(&self, joint: u8, deg_s: f64) -> Result<(), ArmError> {
+        let config = self.config();
+        let spec = *config.joints.get(usize::from(joint).wrapping_sub(1)).ok_or(ArmError::NoJoint(joint))?;
+        match spec.soft_limits_deg {
+            Some((lo, hi)) => {
+                let target = if deg_s >= 0.0 { hi } else { lo };
+                self.move_joints(&[(joint, target)], Some(deg_s.abs()), None)
+            }
+            None => self.run_at_rpm(joint, spec.rpm_for(deg_s)),
+        }
+    }
+
     /// Moves one joint at `rpm` (motor speed) until [`Kv01Arm::stop`]; the controller stops
-    /// it at its soft limit.
+    /// it before its soft limit (allowing for the stopping distance).
     pub fn run_at_rpm(&self, joint: u8, rpm: f64) -> Result<(), ArmError> {
         if !rpm.is_finite() {
             return Err(ArmError::Unsafe { joint, reason: format!("speed {rpm} is not a number") });

@@ -145,7 +145,7 @@ impl Axis for Kv01JointAxis {
                     Direction::Negative => -1.0,
                 };
                 match spec {
-                    Some(spec) => arm.run_at_rpm(j, spec.rpm_for(sign * v)),
+                    Some(_) => arm.jog(j, sign * v),
                     None => Err(ArmError::NoJoint(j)),
                 }
             }

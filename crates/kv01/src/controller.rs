@@ -12,6 +12,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
+/// How far (degrees) a joint may overshoot a soft limit (servo settling) before the
+/// controller stops it with a fault.
+pub const SOFT_LIMIT_OVERSHOOT_DEG: f64 = 1.0;
+
 /// A joint following a (normalised, shared) profile: `x(t) = x0 + d * s(t)`.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Motion {
@@ -109,11 +113,22 @@ fn speed_command(spec: &JointSpec, r: &mut JointRuntime, config: &ArmConfig, now
         }
         // Jog at a fixed speed: stop at the soft limit before the switch.
         let deg_s = rpm * spec.deg_s_per_rpm();
-        let margin = 0.5 + deg_s.abs() * config.cycle.as_secs_f64() * 2.0;
+        // Stopping distance at the configured deceleration plus a few cycles of reaction:
+        // from there on, a planned deceleration ends the run exactly at the soft limit.
+        let v = deg_s.abs();
+        let a = config.acceleration_deg_s2;
+        let margin = v * v / (2.0 * a) + v * 3.0 * config.cycle.as_secs_f64();
         if let Some((lo, hi)) = spec.soft_limits_deg {
+            let limit = if deg_s > 0.0 { hi } else { lo };
             if (deg_s > 0.0 && angle >= hi - margin) || (deg_s < 0.0 && angle <= lo + margin) {
                 r.override_rpm = None;
-                return Some(0.0);
+                let d = limit - angle;
+                if d * deg_s <= 0.0 || d.abs() < 1e-6 {
+                    return Some(0.0);
+                }
+                let plan = Plan::to_target(0.0, deg_s / d, 1.0, v / d.abs(), a / d.abs());
+                r.motion = Some(Motion { start: now, plan, x0: angle, d, settled_at: None });
+                return Some(rpm);
             }
         }
         return Some(rpm);
@@ -136,17 +151,18 @@ fn speed_command(spec: &JointSpec, r: &mut JointRuntime, config: &ArmConfig, now
             return Some(0.0);
         }
     }
-    if !spec.within_soft_limits(angle)
-        && (err * v_ref > 0.0 || v_ref == 0.0)
-        && spec.within_soft_limits(x_ref)
-    {
-        // Measured beyond a soft limit while the reference is inside: keep correcting.
-    } else if !spec.within_soft_limits(angle) {
-        r.motion = None;
-        r.fault = Some(format!("stopped at {angle:.3} deg: beyond the soft limits"));
-        return Some(0.0);
+    let mut deg_s = (v_ref + config.kp * err).clamp(-spec.max_deg_s(), spec.max_deg_s());
+    if let Some((lo, hi)) = spec.soft_limits_deg {
+        if angle > hi + SOFT_LIMIT_OVERSHOOT_DEG || angle < lo - SOFT_LIMIT_OVERSHOOT_DEG {
+            r.motion = None;
+            r.fault = Some(format!("stopped at {angle:.3} deg: beyond the soft limits {lo} .. {hi} deg"));
+            return Some(0.0);
+        }
+        // Never push further out past a soft limit.
+        if (angle > hi && deg_s > 0.0) || (angle < lo && deg_s < 0.0) {
+            deg_s = 0.0;
+        }
     }
-    let deg_s = (v_ref + config.kp * err).clamp(-spec.max_deg_s(), spec.max_deg_s());
     Some(spec.rpm_for(deg_s))
 }
 
@@ -190,8 +206,12 @@ pub(crate) fn run(bus: &Kv01Bus, shared: &Shared, stop: &AtomicBool) {
                             (Some(t), Some(old)) if t > sent_at => old.status,
                             _ => res.status,
                         };
-                        r.reading =
-                            Some(Reading { raw: res.position, angle: spec.angle_deg(res.position), status, at: now });
+                        r.reading = Some(Reading {
+                            raw: res.position,
+                            angle: spec.angle_deg(res.position),
+                            status,
+                            at: now,
+                        });
                         if res.status.lsstop
                             && !r.recovering
                             && (r.motion.is_some() || r.override_rpm.is_some())

@@ -13,6 +13,14 @@ use std::time::{Duration, Instant};
 pub const RECOVERY_RPM: f64 = 200.0;
 /// How far (degrees) the joint may move the wrong way before the recovery stops.
 pub const WRONG_WAY_TOLERANCE_DEG: f64 = 0.5;
+/// How far (degrees) the joint may travel with its switch still pressed before the
+/// recovery concludes it is driving the wrong way (deeper into the switch zone).
+pub const MAX_TRAVEL_ON_SWITCH_DEG: f64 = 10.0;
+/// A joint commanded to move that advances less than this (degrees) in
+/// [`STALL_TIME`] has stalled (e.g. against a mechanical end stop).
+pub const STALL_DEG: f64 = 0.05;
+/// See [`STALL_DEG`].
+pub const STALL_TIME: Duration = Duration::from_millis(700);
 
 impl Kv01Arm {
     /// Recovers `joint` from its limit switch by driving it in `direction` (+1 or -1).
@@ -94,11 +102,31 @@ impl Kv01Arm {
         self.run_at_rpm(joint, rpm)?;
         let t0 = Instant::now();
         let expected = dir * f64::from(spec.speed_sign.signum()) * spec.deg_s_per_rpm().signum();
+        let mut last_progress = (start_angle, Instant::now());
         loop {
             std::thread::sleep(Duration::from_millis(10));
             let s = self.joint(joint)?;
             progress(&s);
             let moved = (s.angle_deg - start_angle) * expected;
+            if (s.angle_deg - last_progress.0).abs() >= STALL_DEG {
+                last_progress = (s.angle_deg, Instant::now());
+            } else if last_progress.1.elapsed() > STALL_TIME {
+                return Err(ArmError::Unsafe {
+                    joint,
+                    reason: format!(
+                        "the joint does not move (stalled at {:.2} deg, against an end stop?): stopped, brake engaged; try the other direction",
+                        s.angle_deg
+                    ),
+                });
+            }
+            if s.status.limit_switch && moved > MAX_TRAVEL_ON_SWITCH_DEG {
+                return Err(ArmError::Unsafe {
+                    joint,
+                    reason: format!(
+                        "the joint moved {moved:.1} deg and is still on its limit switch: probably the wrong way; stopped, brake engaged"
+                    ),
+                });
+            }
             if moved < -WRONG_WAY_TOLERANCE_DEG {
                 return Err(ArmError::Unsafe {
                     joint,

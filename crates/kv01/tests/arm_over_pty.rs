@@ -40,3 +40,204 @@ fn status_is_fresh_right_after_brake_release() {
         assert!(!s.enabled && !s.status.brake_released, "{s:?}");
     }
 }
+
+use motus_kv01_protocol::status::{VOLTS_PER_COUNT_12V, VOLTS_PER_COUNT_24V, VOLTS_PER_COUNT_5V};
+use motus_kv01_sim::{ArmConfig as SimArmConfig, Side, SupplyConfig};
+use std::time::Instant;
+
+fn quiet_supply() -> LineOptions {
+    let mut arm = SimArmConfig::default();
+    arm.supply = SupplyConfig { volts_24v: 23.7, volts_5v: 5.1, volts_12v: 11.9, noise_volts: 0.0 };
+    LineOptions { arm, ..LineOptions::default() }
+}
+
+#[test]
+fn every_joint_moves_to_a_target_and_back_within_a_tenth_of_a_degree() {
+    let sim = Sim::start(LineOptions::default());
+    let arm = sim.open(ArmConfig::default(), BusConfig::default());
+    let targets = [25.0, -20.0, 35.0, 60.0, -40.0, 90.0];
+    for j in 1..=6u8 {
+        arm.power_up(j).unwrap();
+        let start = arm.joint(j).unwrap().angle_deg;
+        // Angles are reported with the spec's offsets applied: compare with the truth.
+        let truth = lock(&sim.arm).joint_angles()[usize::from(j) - 1];
+        assert!((start - truth).abs() < 0.02, "joint {j}: reported {start}, true {truth}");
+        let target = targets[usize::from(j) - 1];
+        arm.move_joints(&[(j, target)], Some(40.0), Some(80.0)).unwrap();
+        let s = arm.wait_idle(&[j], Duration::from_secs(30)).unwrap();
+        let truth = lock(&sim.arm).joint_angles()[usize::from(j) - 1];
+        assert!((s[0].angle_deg - target).abs() <= 0.1, "joint {j} at {}", s[0].angle_deg);
+        assert!((truth - target).abs() <= 0.1, "joint {j}: true angle {truth}");
+        arm.move_joints(&[(j, start)], Some(40.0), Some(80.0)).unwrap();
+        let s = arm.wait_idle(&[j], Duration::from_secs(30)).unwrap();
+        assert!((s[0].angle_deg - start).abs() <= 0.1, "joint {j} back at {}", s[0].angle_deg);
+    }
+}
+
+#[test]
+fn voltages_match_the_simulator_to_a_hundredth_of_a_volt() {
+    let sim = Sim::start(quiet_supply());
+    let arm = sim.open(ArmConfig::default(), BusConfig::default());
+    for j in 1..=6u8 {
+        let v = arm.voltages(j).unwrap();
+        // The simulator's values: its rails quantised to the spec's counts.
+        let q = |volts: f64, k: f64| (volts / k).round() * k;
+        assert!((v.volts_24v() - q(23.7, VOLTS_PER_COUNT_24V)).abs() < 0.01);
+        assert!((v.volts_12v() - q(11.9, VOLTS_PER_COUNT_12V)).abs() < 0.01);
+        assert!((v.volts_5v() - q(5.1, VOLTS_PER_COUNT_5V)).abs() < 0.01);
+    }
+}
+
+#[test]
+fn a_multi_joint_move_arrives_together() {
+    let sim = Sim::start(LineOptions::default());
+    let config = ArmConfig::default();
+    let cycle = config.cycle;
+    let arm = sim.open(config, BusConfig::default());
+    let targets = [(1u8, 30.0), (2, -20.0), (3, 60.0), (5, -45.0)];
+    for (j, _) in targets {
+        arm.power_up(j).unwrap();
+    }
+    arm.move_joints(&targets, Some(30.0), Some(60.0)).unwrap();
+    let t0 = Instant::now();
+    let mut arrived = [None; 4];
+    while arrived.iter().any(Option::is_none) && t0.elapsed() < Duration::from_secs(30) {
+        let angles = lock(&sim.arm).joint_angles();
+        for (k, (j, target)) in targets.iter().enumerate() {
+            if arrived[k].is_none() && (angles[usize::from(*j) - 1] - target).abs() <= 0.1 {
+                arrived[k] = Some(t0.elapsed());
+            }
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let times: Vec<Duration> = arrived.iter().map(|a| a.expect("every joint arrives")).collect();
+    let spread = *times.iter().max().unwrap() - *times.iter().min().unwrap();
+    eprintln!("arrival times {times:?}, spread {spread:?}");
+    assert!(spread <= cycle, "joints arrived {spread:?} apart (cycle {cycle:?})");
+}
+
+#[test]
+fn brake_release_before_en_is_refused() {
+    let sim = Sim::start(LineOptions::default());
+    let arm = sim.open(ArmConfig::default(), BusConfig::default());
+    let err = arm.release_brake(2).unwrap_err();
+    assert!(err.to_string().contains("before the drive is enabled"), "{err}");
+    settle();
+    assert!(!lock(&sim.arm).state(2).unwrap().brake_released, "the brake stayed engaged");
+}
+
+#[test]
+fn soft_limits_stop_a_jog_before_the_switch() {
+    let sim = Sim::start(LineOptions::default());
+    let arm = sim.open(ArmConfig::default(), BusConfig::default());
+    arm.power_up(1).unwrap();
+    // Joint 1 soft limit 120 deg (switch at 125): a jog ends at the soft limit...
+    arm.jog(1, 45.0).unwrap();
+    arm.wait_idle(&[1], Duration::from_secs(30)).unwrap();
+    settle();
+    let st = lock(&sim.arm).state(1).unwrap();
+    assert!(st.limit_switch.is_none() && !st.lsstop, "{st:?}");
+    assert!((st.angle_deg - 120.0).abs() <= 0.1, "stopped at {}", st.angle_deg);
+    // ...and a constant-speed run (3000 rpm = 45 deg/s at 400:1) stops before the switch.
+    arm.move_joints(&[(1, 0.0)], Some(45.0), None).unwrap();
+    arm.wait_idle(&[1], Duration::from_secs(30)).unwrap();
+    arm.run_at_rpm(1, 3000.0).unwrap();
+    arm.wait_idle(&[1], Duration::from_secs(30)).unwrap();
+    settle();
+    let st = lock(&sim.arm).state(1).unwrap();
+    assert!(st.limit_switch.is_none() && !st.lsstop, "{st:?}");
+    assert!((st.angle_deg - 120.0).abs() <= 0.2, "stopped at {}", st.angle_deg);
+    assert!(matches!(
+        arm.move_joints(&[(1, 121.0)], None, None),
+        Err(motus_kv01::ArmError::BeyondSoftLimit { .. })
+    ));
+}
+
+#[test]
+fn a_joint_on_its_switch_is_recovered_and_a_wrong_way_recovery_is_stopped() {
+    let sim = Sim::start(LineOptions::default());
+    let arm = sim.open(ArmConfig::default(), BusConfig::default());
+    lock(&sim.arm).push_joint_onto_switch(2, Side::Upper).unwrap();
+    settle();
+    let s = arm.joint(2).unwrap();
+    assert!(s.status.limit_switch && s.status.lsstop, "{s:?}");
+    // Speed commands are blocked with LSSTOP.
+    arm.enable(2).unwrap_or(());
+    let answer = arm.faulhaber(2, "V100").unwrap();
+    assert_eq!(answer.to_string(), "LSSTOP");
+    // Wrong way: refused before any motion.
+    let err = arm.recover_limit(2, 1, Duration::from_secs(10), |_| {}).unwrap_err();
+    assert!(err.to_string().contains("use --direction -"), "{err}");
+    // Right way, watching the true motor speed.
+    let watch = sim.arm.clone();
+    let max_rpm = std::sync::Arc::new(std::sync::Mutex::new(0.0f64));
+    let m = max_rpm.clone();
+    let s = arm
+        .recover_limit(2, -1, Duration::from_secs(30), move |_| {
+            let rpm = lock(&watch).state(2).unwrap().motor_rpm.abs();
+            let mut g = m.lock().unwrap();
+            *g = g.max(rpm);
+        })
+        .unwrap();
+    assert!(!s.status.limit_switch && !s.status.restricted_mode, "{s:?}");
+    assert!(s.angle_deg <= 90.0, "back inside the soft limits: {}", s.angle_deg);
+    let peak = *max_rpm.lock().unwrap();
+    assert!(peak <= 399.0, "recovery exceeded 399 rpm: {peak}");
+    // The joint is usable again.
+    arm.move_joints(&[(2, 45.0)], None, None).unwrap();
+    arm.wait_idle(&[2], Duration::from_secs(30)).unwrap();
+}
+
+#[test]
+fn a_wrong_way_recovery_that_starts_moving_is_stopped_under_399_rpm() {
+    let sim = Sim::start(LineOptions::default());
+    // The driver believes joint 2's offset is 10 deg off, so it cannot tell which side
+    // it is on from the angle: the runtime check must stop the wrong-way motion.
+    let mut config = ArmConfig::default();
+    config.joints[1].offset_deg += 200.0;
+    let arm = sim.open(config, BusConfig::default());
+    lock(&sim.arm).push_joint_onto_switch(2, Side::Upper).unwrap();
+    settle();
+    let watch = sim.arm.clone();
+    let mut peak = 0.0f64;
+    let err = arm
+        .recover_limit(2, 1, Duration::from_secs(10), |_| {
+            peak = peak.max(lock(&watch).state(2).unwrap().motor_rpm.abs());
+        })
+        .unwrap_err();
+    assert!(err.to_string().contains("wrong way") || err.to_string().contains("stopped"), "{err}");
+    assert!(peak <= 399.0, "{peak}");
+    settle();
+    let st = lock(&sim.arm).state(2).unwrap();
+    assert!(st.motor_rpm.abs() < 1.0 && !st.brake_released, "stopped with the brake on: {st:?}");
+}
+
+#[test]
+fn silence_for_700_ms_latches_to_and_the_driver_reports_it() {
+    let sim = Sim::start(LineOptions::default());
+    let arm = sim.open(ArmConfig::default(), BusConfig::default());
+    arm.power_up(3).unwrap();
+    arm.shutdown();
+    drop(arm);
+    std::thread::sleep(Duration::from_millis(800));
+    assert!(lock(&sim.arm).state(3).unwrap().timed_out);
+    let arm = sim.open(ArmConfig::default(), BusConfig::default());
+    let s = arm.joint(3).unwrap();
+    let fault = s.fault.expect("TO reported");
+    assert!(fault.contains("700 ms") && fault.contains("power-cycle"), "{fault}");
+    let err = arm.enable(3).unwrap_err();
+    assert!(err.to_string().contains("700 ms"), "{err}");
+}
+
+#[test]
+fn the_host_never_sends_0xf0_inside_data() {
+    let sim = Sim::start(LineOptions::default());
+    let arm = sim.open(ArmConfig::default(), BusConfig::default());
+    let err = arm.faulhaber(1, "V\u{f0}").unwrap_err();
+    assert!(
+        err.to_string().contains("0xf0")
+            || err.to_string().contains("0xF0")
+            || err.to_string().contains("Faulhaber"),
+        "{err}"
+    );
+}

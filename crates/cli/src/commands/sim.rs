@@ -60,7 +60,9 @@ fn kv01(a: SimKv01Args) -> Result<()> {
         }
     }
     let arm = match &a.arm {
-        Some(json) => motus_kv01_sim::ArmConfig::from_json(json).map_err(|e| anyhow::anyhow!("invalid --arm: {e}"))?,
+        Some(json) => {
+            motus_kv01_sim::ArmConfig::from_json(json).map_err(|e| anyhow::anyhow!("invalid --arm: {e}"))?
+        }
         None => motus_kv01_sim::ArmConfig::default(),
     };
     let link = open_sim_link(&a.link, a.baud)?;
