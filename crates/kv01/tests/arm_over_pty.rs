@@ -46,9 +46,8 @@ use motus_kv01_sim::{ArmConfig as SimArmConfig, Side, SupplyConfig};
 use std::time::Instant;
 
 fn quiet_supply() -> LineOptions {
-    let mut arm = SimArmConfig::default();
-    arm.supply = SupplyConfig { volts_24v: 23.7, volts_5v: 5.1, volts_12v: 11.9, noise_volts: 0.0 };
-    LineOptions { arm, ..LineOptions::default() }
+    let supply = SupplyConfig { volts_24v: 23.7, volts_5v: 5.1, volts_12v: 11.9, noise_volts: 0.0 };
+    LineOptions { arm: SimArmConfig { supply, ..SimArmConfig::default() }, ..LineOptions::default() }
 }
 
 #[test]
