@@ -210,7 +210,7 @@ impl Default for CmConfig {
         Self {
             safety_timeout_ms: 700.0,
             controller_wait_ms: 50.0,
-            turnaround_ms: 0.5,
+            turnaround_ms: 0.1,
             controller_baud: 9600,
             controller_latency_ms: 1.0,
             restricted_rpm: 399,
