@@ -1,0 +1,100 @@
+//! `motus` with the KV-01 arm: codec commands, and a simulator process on a real pty
+//! driven by `motus kv01` (a session, then a one-shot command that finds "TO" latched).
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+
+use std::io::{BufRead, Write};
+use std::path::Path;
+use std::process::{Child, Command, Output, Stdio};
+
+const MOTUS: &str = env!("CARGO_BIN_EXE_motus");
+
+fn motus(args: &[&str]) -> Output {
+    Command::new(MOTUS).args(args).output().unwrap()
+}
+
+struct SimProcess(Child);
+
+impl SimProcess {
+    fn start(link: &Path) -> SimProcess {
+        let mut child = Command::new(MOTUS)
+            .args(["sim", "kv01", "--link", &format!("pty:{}", link.display())])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
+        loop {
+            let line = lines.next().expect("simulator exited").unwrap();
+            if line.contains("simulating the KV-01 arm") {
+                break;
+            }
+        }
+        std::thread::spawn(move || for _ in lines {});
+        SimProcess(child)
+    }
+}
+
+impl Drop for SimProcess {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn decode_encode_and_the_sources_examples() {
+    let o = motus(&["decode", "kv01", "E2 07 D0 45 4E FB F0"]);
+    assert!(o.status.success());
+    let json = String::from_utf8(o.stdout).unwrap();
+    assert_eq!(json.trim(), r#"{"direction":"to_module","address":226,"command":"d0","text":"EN"}"#);
+    let o = motus(&["encode", "kv01", json.trim()]);
+    assert_eq!(String::from_utf8(o.stdout).unwrap().trim(), "E2 07 D0 45 4E FB F0");
+    // The source's own example fails the published CRC: strict rejects, lenient warns.
+    let o = motus(&["decode", "kv01", "E2 07 D0 45 4E 20 F0"]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8(o.stderr).unwrap();
+    assert!(err.contains("expected 0xfb, received 0x20") || err.contains("expected 0xFB, received 0x20"), "{err}");
+    let o = motus(&["decode", "kv01", "E2 06 D1 08 E0 F0", "--crc", "lenient"]);
+    assert!(o.status.success());
+    assert!(String::from_utf8(o.stderr).unwrap().contains("CRC mismatch accepted"));
+    // The host never builds a message with 0xF0 in its data.
+    let o = motus(&["encode", "kv01", r#"{"direction":"to_module","address":226,"command":"d0","text":"V\u00f0"}"#]);
+    assert_eq!(o.status.code(), Some(1));
+}
+
+#[test]
+fn session_moves_a_joint_and_a_later_command_reports_the_latched_time_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("arm");
+    let _sim = SimProcess::start(&link);
+    let port = link.to_str().unwrap();
+    let mut session = Command::new(MOTUS)
+        .args(["kv01", port, "session", "--json"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    {
+        let stdin = session.stdin.as_mut().unwrap();
+        writeln!(stdin, "brake 2 off").unwrap();
+        writeln!(stdin, "enable 2").unwrap();
+        writeln!(stdin, "move 2=25").unwrap();
+        writeln!(stdin, "voltages 2").unwrap();
+    }
+    let out = session.wait_with_output().unwrap();
+    let text = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines[0].contains("refusing to release the brake before the drive is enabled"), "{text}");
+    assert!(lines[1].contains("enabled, brake released"), "{text}");
+    let joints: serde_json::Value = serde_json::from_str(lines[2]).unwrap();
+    let a = joints[1]["angle_deg"].as_f64().unwrap();
+    assert!((a - 25.0).abs() <= 0.1, "{a}");
+    assert!(lines[3].contains("volts_24v"), "{text}");
+    // The session ended: 700 ms later every module has latched "TO".
+    std::thread::sleep(std::time::Duration::from_millis(900));
+    let o = motus(&["kv01", port, "joints"]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8(o.stderr).unwrap();
+    assert!(err.contains("700 ms safety communication time-out tripped") && err.contains("power-cycle"), "{err}");
+}
