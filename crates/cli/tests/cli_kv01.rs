@@ -53,12 +53,19 @@ fn decode_encode_and_the_sources_examples() {
     let o = motus(&["decode", "kv01", "E2 07 D0 45 4E 20 F0"]);
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8(o.stderr).unwrap();
-    assert!(err.contains("expected 0xfb, received 0x20") || err.contains("expected 0xFB, received 0x20"), "{err}");
+    assert!(
+        err.contains("expected 0xfb, received 0x20") || err.contains("expected 0xFB, received 0x20"),
+        "{err}"
+    );
     let o = motus(&["decode", "kv01", "E2 06 D1 08 E0 F0", "--crc", "lenient"]);
     assert!(o.status.success());
     assert!(String::from_utf8(o.stderr).unwrap().contains("CRC mismatch accepted"));
     // The host never builds a message with 0xF0 in its data.
-    let o = motus(&["encode", "kv01", r#"{"direction":"to_module","address":226,"command":"d0","text":"V\u00f0"}"#]);
+    let o = motus(&[
+        "encode",
+        "kv01",
+        r#"{"direction":"to_module","address":226,"command":"d0","text":"V\u00f0"}"#,
+    ]);
     assert_eq!(o.status.code(), Some(1));
 }
 
@@ -96,5 +103,8 @@ fn session_moves_a_joint_and_a_later_command_reports_the_latched_time_out() {
     let o = motus(&["kv01", port, "joints"]);
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8(o.stderr).unwrap();
-    assert!(err.contains("700 ms safety communication time-out tripped") && err.contains("power-cycle"), "{err}");
+    assert!(
+        err.contains("700 ms safety communication time-out tripped") && err.contains("power-cycle"),
+        "{err}"
+    );
 }

@@ -24,12 +24,15 @@ impl Rig {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("arm");
         let pty = PtyLink::create(Some(&path), LineSettings::n81(115_200)).unwrap();
-        let mut line = SimLine::new(Box::new(pty), LineOptions { baud_pacing: pacing, ..LineOptions::default() }).unwrap();
+        let mut line =
+            SimLine::new(Box::new(pty), LineOptions { baud_pacing: pacing, ..LineOptions::default() })
+                .unwrap();
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
         let thread = std::thread::spawn(move || line.run(&flag).unwrap());
         let link = SerialLink::open(path.to_str().unwrap(), 115_200).unwrap();
-        let bus = Kv01Bus::new(Arc::new(BusMaster::new(Box::new(link), BusConfig::default())), CrcMode::Strict);
+        let bus =
+            Kv01Bus::new(Arc::new(BusMaster::new(Box::new(link), BusConfig::default())), CrcMode::Strict);
         Rig { _dir: dir, bus, stop, thread: Some(thread) }
     }
 }

@@ -14,7 +14,8 @@ use std::time::{Duration, Instant};
 
 #[test]
 fn one_percent_faults_for_a_minute() {
-    let seconds: u64 = std::env::var("MOTUS_KV01_FAULT_SECONDS").ok().and_then(|s| s.parse().ok()).unwrap_or(60);
+    let seconds: u64 =
+        std::env::var("MOTUS_KV01_FAULT_SECONDS").ok().and_then(|s| s.parse().ok()).unwrap_or(60);
     let faults = FaultConfig { drop_rate: 0.01, corrupt_rate: 0.01, seed: 11 };
     let sim = Sim::start(LineOptions { faults, ..LineOptions::default() }.seeded(11));
     let arm = sim.open(ArmConfig::default(), BusConfig { margin: Duration::from_millis(10), retries: 3 });
@@ -35,12 +36,20 @@ fn one_percent_faults_for_a_minute() {
         while arm.joint(j).unwrap().moving {
             let now = lock(&sim.arm).joint_angles();
             for (n, &i) in idle.iter().enumerate() {
-                assert!((now[i - 1] - idle_start[n]).abs() < 0.01, "idle joint {i} moved: {} -> {}", idle_start[n], now[i - 1]);
+                assert!(
+                    (now[i - 1] - idle_start[n]).abs() < 0.01,
+                    "idle joint {i} moved: {} -> {}",
+                    idle_start[n],
+                    now[i - 1]
+                );
             }
             // Joints not commanded in this move keep their angle.
             for other in 1..=3usize {
                 if other != usize::from(j) {
-                    assert!((now[other - 1] - before[other - 1]).abs() < 0.05, "joint {other} moved unintentionally");
+                    assert!(
+                        (now[other - 1] - before[other - 1]).abs() < 0.05,
+                        "joint {other} moved unintentionally"
+                    );
                 }
             }
             std::thread::sleep(Duration::from_millis(5));
@@ -52,7 +61,12 @@ fn one_percent_faults_for_a_minute() {
     }
     let mut worst = Duration::ZERO;
     for s in arm.joints() {
-        assert!(s.longest_gap < Duration::from_millis(700), "joint {}: longest gap {:?}", s.joint, s.longest_gap);
+        assert!(
+            s.longest_gap < Duration::from_millis(700),
+            "joint {}: longest gap {:?}",
+            s.joint,
+            s.longest_gap
+        );
         worst = worst.max(s.longest_gap);
         assert!(!lock(&sim.arm).state(s.joint).unwrap().timed_out, "module of joint {} latched TO", s.joint);
     }
