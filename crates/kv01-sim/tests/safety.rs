@@ -181,15 +181,16 @@ fn slow_controller_gives_timeout() {
             Command::Faulhaber { text: text.into() },
         )
     };
-    // Normal: 0.5 ms turnaround + "EN\r" (3 chars at 9600 Bd = 3.125 ms) + 1 ms latency +
+    // Normal: turnaround + "EN\r" (3 chars at 9600 Bd = 3.125 ms) + 1 ms latency +
     // "OK\r\n" (4.167 ms).
     let t = r.arm.respond(&request("EN"), r.now).unwrap();
-    close(t.delay, 0.5 + 3.125 + 1.0 + 4.1667);
+    let turnaround = motus_kv01_sim::ArmConfig::default().cm.turnaround_ms;
+    close(t.delay, turnaround + 3.125 + 1.0 + 4.1667);
     r.arm.module_mut(3).unwrap().faults_mut().controller_delay = Duration::from_millis(80);
     let t = r.arm.respond(&request("DI"), r.now).unwrap();
     assert_eq!(t.reply.body, ReplyBody::Faulhaber { answer: Answer::Timeout });
     // The module waited its 50 ms after forwarding.
-    close(t.delay, 0.5 + 3.125 + 50.0);
+    close(t.delay, turnaround + 3.125 + 50.0);
     assert!(!r.state(3).drive_enabled, "the command still reached the controller");
     // D2 does not wait: the resolver reply comes at once.
     let t = r.arm.respond(
@@ -199,7 +200,7 @@ fn slow_controller_gives_timeout() {
         ),
         r.now,
     );
-    close(t.unwrap().delay, 0.5);
+    close(t.unwrap().delay, turnaround);
     // Line-wide: every module slow.
     r.arm.set_controller_delay(Duration::from_millis(49));
     assert_eq!(r.d0(1, "POS"), "TIMEOUT", "49 ms + answer wire time > 50 ms");
