@@ -30,6 +30,9 @@ pub enum Command {
         /// Direction (KV-01): auto guesses from the frame's shape.
         #[arg(long, value_enum, default_value = "auto")]
         direction: DirectionArg,
+        /// Protocol revision (NFv2): 2012, 2013, 2014 or latest.
+        #[arg(long, default_value = "latest")]
+        revision: String,
     },
     /// Encode one frame given as JSON; prints uppercase hex bytes.
     Encode {
@@ -37,6 +40,9 @@ pub enum Command {
         format: FrameFormat,
         /// The frame as JSON (the form `decode` prints).
         json: String,
+        /// Protocol revision (NFv2): 2012, 2013, 2014 or latest.
+        #[arg(long, default_value = "latest")]
+        revision: String,
     },
     /// Run a device simulator.
     #[command(subcommand)]
@@ -60,6 +66,8 @@ pub enum FrameFormat {
     Ps1aReply,
     /// KV-01 message, either direction.
     Kv01,
+    /// NFv2 frame (any number of commands and queries).
+    Nfv2,
 }
 
 /// CRC checking of received frames.
@@ -89,6 +97,43 @@ pub enum SimCommand {
     Ps1a(SimPs1aArgs),
     /// The simulated KV-01 arm: six communication modules on one line.
     Kv01(SimKv01Args),
+    /// Simulated 1209A axis controllers (NFv2) on one line.
+    Nfv2(SimNfv2Args),
+}
+
+/// Options of `motus sim nfv2`.
+#[derive(Debug, Args)]
+pub struct SimNfv2Args {
+    /// Where to serve: `pty:PATH` or `serial:DEVICE`.
+    #[arg(long)]
+    pub link: String,
+    /// Controller addresses, comma-separated.
+    #[arg(long, value_delimiter = ',', required = true)]
+    pub addr: Vec<u8>,
+    /// Nominal baud rate of the line (RS-485: 57600).
+    #[arg(long, default_value_t = 57_600)]
+    pub baud: u32,
+    /// Bytes take their real wire time at --baud.
+    #[arg(long)]
+    pub baud_pacing: bool,
+    /// Probability of dropping an answer (0..1).
+    #[arg(long, default_value_t = 0.0)]
+    pub drop_rate: f64,
+    /// Probability of corrupting each byte, in both directions (0..1).
+    #[arg(long, default_value_t = 0.0)]
+    pub corrupt_rate: f64,
+    /// Processing delay before an answer (ms).
+    #[arg(long)]
+    pub delay_ms: Option<f64>,
+    /// Protocol revision: 2012, 2013, 2014 or latest.
+    #[arg(long, default_value = "latest")]
+    pub revision: String,
+    /// Seed of the fault injection and the measurement noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Controller configuration (JSON of the simulator's ControllerConfig).
+    #[arg(long)]
+    pub controller: Option<String>,
 }
 
 /// Options of `motus sim kv01`.

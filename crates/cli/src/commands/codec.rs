@@ -6,7 +6,13 @@ use anyhow::{Context, Result};
 use motus_ps1a_protocol::{CommandFrame, StatusReply};
 
 /// Decodes and prints one JSON object.
-pub fn decode(format: FrameFormat, text: &str, crc: CrcArg, direction: DirectionArg) -> Result<()> {
+pub fn decode(
+    format: FrameFormat,
+    text: &str,
+    crc: CrcArg,
+    direction: DirectionArg,
+    revision: &str,
+) -> Result<()> {
     let bytes = hex::parse(text)?;
     let json = match format {
         FrameFormat::Ps1aCmd => serde_json::to_string(
@@ -38,13 +44,19 @@ pub fn decode(format: FrameFormat, text: &str, crc: CrcArg, direction: Direction
             }
             serde_json::to_string(&decoded)?
         }
+        FrameFormat::Nfv2 => {
+            let rev = nfv2_revision(revision)?;
+            let frame = motus_nfv2_protocol::decode_frame(&bytes, rev)
+                .with_context(|| format!("invalid NFv2 frame {}", hex::format(&bytes)))?;
+            serde_json::to_string(&frame)?
+        }
     };
     println!("{json}");
     Ok(())
 }
 
 /// Encodes and prints uppercase hex.
-pub fn encode(format: FrameFormat, json: &str) -> Result<()> {
+pub fn encode(format: FrameFormat, json: &str, revision: &str) -> Result<()> {
     let bytes = match format {
         FrameFormat::Ps1aCmd => serde_json::from_str::<CommandFrame>(json)
             .context(
@@ -61,7 +73,19 @@ pub fn encode(format: FrameFormat, json: &str) -> Result<()> {
             )?;
             decoded.message.encode().context("cannot encode the KV-01 message")?
         }
+        FrameFormat::Nfv2 => {
+            let frame: motus_nfv2_protocol::Frame = serde_json::from_str(json).context(
+                "invalid NFv2 JSON (e.g. {\"address\":1,\"commands\":[{\"kind\":\"query\",\"code\":\"read_drives_position\"}]})",
+            )?;
+            motus_nfv2_protocol::encode_frame(&frame, nfv2_revision(revision)?)
+                .context("cannot encode the NFv2 frame")?
+        }
     };
     println!("{}", hex::format(&bytes));
     Ok(())
+}
+
+/// Parses an NFv2 revision name.
+pub fn nfv2_revision(text: &str) -> Result<motus_nfv2_protocol::Revision> {
+    text.parse::<motus_nfv2_protocol::Revision>().map_err(|e| anyhow::anyhow!("--revision {text:?}: {e}"))
 }

@@ -13,8 +13,10 @@ use anyhow::Result;
 /// Runs one command.
 pub fn run(command: Command) -> Result<()> {
     match command {
-        Command::Decode { format, hex, crc, direction } => codec::decode(format, &hex, crc, direction),
-        Command::Encode { format, json } => codec::encode(format, &json),
+        Command::Decode { format, hex, crc, direction, revision } => {
+            codec::decode(format, &hex, crc, direction, &revision)
+        }
+        Command::Encode { format, json, revision } => codec::encode(format, &json, &revision),
         Command::Sim(s) => sim::run(s),
         Command::Axis(a) => axis::run(a),
         Command::Ps1a(p) => ps1a::run(p),

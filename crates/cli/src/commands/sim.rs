@@ -1,6 +1,6 @@
 //! `motus sim ...`.
 
-use crate::cli::{SimCommand, SimKv01Args, SimPs1aArgs};
+use crate::cli::{SimCommand, SimKv01Args, SimNfv2Args, SimPs1aArgs};
 use anyhow::{bail, Context, Result};
 use motus_ps1a_sim::{LineOptions, MachineConfig, SimLine};
 use motus_serial::{FaultConfig, LineSettings, Link, PtyLink, SerialLink};
@@ -11,6 +11,7 @@ pub fn run(cmd: SimCommand) -> Result<()> {
     match cmd {
         SimCommand::Ps1a(args) => ps1a(args),
         SimCommand::Kv01(args) => kv01(args),
+        SimCommand::Nfv2(args) => nfv2(args),
     }
 }
 
@@ -76,6 +77,40 @@ fn kv01(a: SimKv01Args) -> Result<()> {
     let mut line = motus_kv01_sim::SimLine::new(link, options)?;
     let stop = super::stop_flag()?;
     eprintln!("simulating the KV-01 arm (modules 0xE1..0xE6); the 700 ms time-out latches until restart; Ctrl-C to stop");
+    line.run(&stop)?;
+    Ok(())
+}
+
+fn nfv2(a: SimNfv2Args) -> Result<()> {
+    for (name, rate) in [("--drop-rate", a.drop_rate), ("--corrupt-rate", a.corrupt_rate)] {
+        if !(0.0..=1.0).contains(&rate) {
+            bail!("{name} must be between 0 and 1, got {rate}");
+        }
+    }
+    let controller = match &a.controller {
+        Some(json) => motus_nfv2_sim::ControllerConfig::from_json(json)
+            .map_err(|e| anyhow::anyhow!("invalid --controller: {e}"))?,
+        None => motus_nfv2_sim::ControllerConfig::default(),
+    };
+    let mut options = motus_nfv2_sim::LineOptions {
+        addresses: a.addr.clone(),
+        revision: super::codec::nfv2_revision(&a.revision)?,
+        baud_pacing: a.baud_pacing,
+        faults: FaultConfig { drop_rate: a.drop_rate, corrupt_rate: a.corrupt_rate, seed: a.seed },
+        controller,
+        ..motus_nfv2_sim::LineOptions::default()
+    }
+    .seeded(a.seed);
+    if let Some(ms) = a.delay_ms {
+        if !(0.0..=10_000.0).contains(&ms) {
+            bail!("--delay-ms must be between 0 and 10000, got {ms}");
+        }
+        options.reply_delay = std::time::Duration::from_secs_f64(ms / 1000.0);
+    }
+    let link = open_sim_link(&a.link, a.baud)?;
+    let mut line = motus_nfv2_sim::SimLine::new(link, options)?;
+    let stop = super::stop_flag()?;
+    eprintln!("simulating 1209A controllers at addresses {:?}; Ctrl-C to stop", a.addr);
     line.run(&stop)?;
     Ok(())
 }
