@@ -53,6 +53,10 @@ pub enum Command {
     Ps1a(Ps1aArgs),
     /// KV-01 arm: joints, voltages, brakes, Faulhaber pass-through, limit recovery, gripper.
     Kv01(Kv01Args),
+    /// NFv2 line tools: send any frame and print the decoded answer.
+    Nfv2(Nfv2Args),
+    /// The pan-tilt camera head on two 1209A controllers.
+    Pantilt(PanTiltArgs),
     /// Start simulated devices and run them through a demonstration sequence.
     Demo(DemoArgs),
 }
@@ -448,6 +452,79 @@ pub enum GripperOp {
     Close,
     /// Rotate to an angle.
     Rotate,
+}
+
+/// Options of `motus nfv2`.
+#[derive(Debug, Args)]
+pub struct Nfv2Args {
+    /// Serial port (or simulator pty link).
+    pub port: String,
+    /// Baud rate (RS-485: 57600).
+    #[arg(long, default_value_t = 57_600, global = true)]
+    pub baud: u32,
+    /// Protocol revision: 2012, 2013, 2014 or latest.
+    #[arg(long, default_value = "latest", global = true)]
+    pub revision: String,
+    /// What to do.
+    #[command(subcommand)]
+    pub action: Nfv2Action,
+}
+
+/// NFv2 actions.
+#[derive(Debug, Subcommand)]
+pub enum Nfv2Action {
+    /// Send a frame given as JSON (the `decode nfv2` form) and print the answer as JSON.
+    Raw {
+        /// The frame.
+        json: String,
+    },
+}
+
+/// Options of `motus pantilt`.
+#[derive(Debug, Args)]
+pub struct PanTiltArgs {
+    /// Serial port (or simulator pty link) of the RS-485 bus.
+    pub port: String,
+    /// Baud rate.
+    #[arg(long, default_value_t = 57_600, global = true)]
+    pub baud: u32,
+    /// Address of the pan controller.
+    #[arg(long, default_value_t = 1, global = true)]
+    pub pan_addr: u8,
+    /// Address of the tilt controller.
+    #[arg(long, default_value_t = 2, global = true)]
+    pub tilt_addr: u8,
+    /// Print JSON.
+    #[arg(long, global = true)]
+    pub json: bool,
+    /// What to do.
+    #[command(subcommand)]
+    pub action: PanTiltAction,
+}
+
+/// Pan-tilt actions.
+#[derive(Debug, Subcommand)]
+pub enum PanTiltAction {
+    /// Home both axes.
+    Home,
+    /// Move to (pan, tilt) in degrees; both axes arrive together.
+    #[command(allow_negative_numbers = true)]
+    Goto {
+        /// Pan angle, degrees.
+        pan: f64,
+        /// Tilt angle, degrees.
+        tilt: f64,
+    },
+    /// Track a target stream: lines `t pan tilt` (s, deg, deg) from a file or `-` (stdin).
+    Track {
+        /// File, or `-` for stdin.
+        source: String,
+    },
+    /// Where the head was `t` seconds after the command started (from timestamped samples).
+    Where {
+        /// Seconds after the start (>= 0).
+        t: f64,
+    },
 }
 
 /// Options of `motus demo`.

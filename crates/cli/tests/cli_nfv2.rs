@@ -26,3 +26,80 @@ fn nfv2_decode_encode_round_trip_and_errors() {
     let o = motus(&["decode", "nfv2", hex, "--revision", "1999"]);
     assert_eq!(o.status.code(), Some(1));
 }
+
+/// A simulator process with two 1209A controllers on a pty.
+struct SimProcess(std::process::Child);
+
+impl SimProcess {
+    fn start(link: &std::path::Path) -> SimProcess {
+        use std::io::BufRead;
+        let mut child = Command::new(MOTUS)
+            .args([
+                "sim",
+                "nfv2",
+                "--link",
+                &format!("pty:{}", link.display()),
+                "--addr",
+                "1,2",
+                "--baud-pacing",
+            ])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
+        loop {
+            let line = lines.next().expect("simulator exited").unwrap();
+            if line.contains("simulating 1209A controllers") {
+                break;
+            }
+        }
+        std::thread::spawn(move || for _ in lines {});
+        SimProcess(child)
+    }
+}
+
+impl Drop for SimProcess {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn pantilt_home_goto_track_where_and_raw_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("line");
+    let _sim = SimProcess::start(&link);
+    let port = link.to_str().unwrap();
+    let o = motus(&["pantilt", port, "goto", "30", "-10"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not homed"));
+    assert!(motus(&["pantilt", port, "home"]).status.success());
+    let o = motus(&["pantilt", port, "goto", "30", "-10", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(
+        (v["pan_deg"].as_f64().unwrap() - 30.0).abs() < 0.05
+            && (v["tilt_deg"].as_f64().unwrap() + 10.0).abs() < 0.05
+    );
+    let track = dir.path().join("track.txt");
+    std::fs::write(&track, "# t pan tilt\n0 30 -10\n1 35 -5\n2 20 -5\n").unwrap();
+    let o = motus(&["pantilt", port, "track", track.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!((v["pan_deg"].as_f64().unwrap() - 20.0).abs() < 0.05, "{v}");
+    let o = motus(&["pantilt", port, "where", "0.1", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = motus(&[
+        "nfv2",
+        port,
+        "raw",
+        r#"{"address":2,"commands":[{"kind":"query","code":"read_drives_position"}]}"#,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["address"], 2);
+    let o = motus(&["axis", &format!("nfv2://{port}?addr=1"), "status", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

@@ -24,7 +24,8 @@ pub fn open(uri_text: &str) -> Result<Box<dyn Axis>> {
             let arm = super::kv01::open_arm(&uri.path, baud, crc)?;
             Ok(Box::new(motus_kv01::Kv01JointAxis::new(arm, joint)?))
         }
-        other => bail!("unknown device family {other:?} in {uri_text:?} (supported: ps1a, kv01)"),
+        "nfv2" => Ok(Box::new(motus_nfv2::open_axis(&uri).map_err(|e| anyhow::anyhow!("{e}"))?)),
+        other => bail!("unknown device family {other:?} in {uri_text:?} (supported: ps1a, kv01, nfv2)"),
     }
 }
 

@@ -4,6 +4,7 @@ mod axis;
 mod codec;
 mod demo;
 mod kv01;
+mod nfv2;
 mod ps1a;
 mod sim;
 
@@ -21,6 +22,8 @@ pub fn run(command: Command) -> Result<()> {
         Command::Axis(a) => axis::run(a),
         Command::Ps1a(p) => ps1a::run(p),
         Command::Kv01(k) => kv01::run(k),
+        Command::Nfv2(n) => nfv2::run_nfv2(n),
+        Command::Pantilt(p) => nfv2::run_pantilt(p),
         Command::Demo(d) => demo::run(d),
     }
 }
