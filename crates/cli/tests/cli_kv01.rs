@@ -2,43 +2,14 @@
 //! driven by `motus kv01` (a session, then a one-shot command that finds "TO" latched).
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use std::io::{BufRead, Write};
-use std::path::Path;
-use std::process::{Child, Command, Output, Stdio};
+mod common;
 
-const MOTUS: &str = env!("CARGO_BIN_EXE_motus");
+use common::{SimProcess, MOTUS};
+use std::io::Write;
+use std::process::{Command, Output, Stdio};
 
 fn motus(args: &[&str]) -> Output {
     Command::new(MOTUS).args(args).output().unwrap()
-}
-
-struct SimProcess(Child);
-
-impl SimProcess {
-    fn start(link: &Path) -> SimProcess {
-        let mut child = Command::new(MOTUS)
-            .args(["sim", "kv01", "--link", &format!("pty:{}", link.display())])
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
-        loop {
-            let line = lines.next().expect("simulator exited").unwrap();
-            if line.contains("simulating the KV-01 arm") {
-                break;
-            }
-        }
-        std::thread::spawn(move || for _ in lines {});
-        SimProcess(child)
-    }
-}
-
-impl Drop for SimProcess {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
 }
 
 #[test]
@@ -73,8 +44,9 @@ fn decode_encode_and_the_sources_examples() {
 fn session_moves_a_joint_and_a_later_command_reports_the_latched_time_out() {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("arm");
-    let _sim = SimProcess::start(&link);
     let port = link.to_str().unwrap();
+    let _sim =
+        SimProcess::start(&["sim", "kv01", "--link", &format!("pty:{port}")], "simulating the KV-01 arm");
     let mut session = Command::new(MOTUS)
         .args(["kv01", port, "session", "--json"])
         .stdin(Stdio::piped())

@@ -1,9 +1,10 @@
 //! `motus decode|encode nfv2` and `motus sim nfv2` end to end.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use std::process::{Command, Output};
+mod common;
 
-const MOTUS: &str = env!("CARGO_BIN_EXE_motus");
+use common::{SimProcess, MOTUS};
+use std::process::{Command, Output};
 
 fn motus(args: &[&str]) -> Output {
     Command::new(MOTUS).args(args).output().unwrap()
@@ -27,51 +28,15 @@ fn nfv2_decode_encode_round_trip_and_errors() {
     assert_eq!(o.status.code(), Some(1));
 }
 
-/// A simulator process with two 1209A controllers on a pty.
-struct SimProcess(std::process::Child);
-
-impl SimProcess {
-    fn start(link: &std::path::Path) -> SimProcess {
-        use std::io::BufRead;
-        let mut child = Command::new(MOTUS)
-            .args([
-                "sim",
-                "nfv2",
-                "--link",
-                &format!("pty:{}", link.display()),
-                "--addr",
-                "1,2",
-                "--baud-pacing",
-            ])
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
-        let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
-        loop {
-            let line = lines.next().expect("simulator exited").unwrap();
-            if line.contains("simulating 1209A controllers") {
-                break;
-            }
-        }
-        std::thread::spawn(move || for _ in lines {});
-        SimProcess(child)
-    }
-}
-
-impl Drop for SimProcess {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
 #[test]
 fn pantilt_home_goto_track_where_and_raw_frames() {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("line");
-    let _sim = SimProcess::start(&link);
     let port = link.to_str().unwrap();
+    let _sim = SimProcess::start(
+        &["sim", "nfv2", "--link", &format!("pty:{port}"), "--addr", "1,2", "--baud-pacing"],
+        "simulating 1209A controllers",
+    );
     let o = motus(&["pantilt", port, "goto", "30", "-10"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("not homed"));

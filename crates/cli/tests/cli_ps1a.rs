@@ -2,11 +2,12 @@
 //! driven through `motus ps1a` and `motus axis`, including a SIGKILL mid-motion.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
-use std::time::Duration;
+mod common;
 
-const MOTUS: &str = env!("CARGO_BIN_EXE_motus");
+use common::{SimProcess, MOTUS};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::Duration;
 
 fn motus(args: &[&str], record: &Path) -> Output {
     Command::new(MOTUS).args(args).env("MOTUS_PS1A_PARAMS", record).output().unwrap()
@@ -24,52 +25,13 @@ fn fails(args: &[&str], record: &Path) -> String {
     String::from_utf8(o.stderr).unwrap()
 }
 
-struct SimProcess {
-    child: Child,
-}
-
-impl SimProcess {
-    /// Starts `motus sim ps1a` and waits for it to say it serves the line (a stale
-    /// link left by a killed simulator does not count).
-    fn start(link: &Path, state: &Path, addrs: &str) -> SimProcess {
-        use std::io::BufRead;
-        let mut child = Command::new(MOTUS)
-            .args([
-                "sim",
-                "ps1a",
-                "--link",
-                &format!("pty:{}", link.display()),
-                "--addr",
-                addrs,
-                "--state-file",
-            ])
-            .arg(state)
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
-        loop {
-            let line = lines.next().expect("simulator exited before serving").unwrap();
-            if line.contains("simulating PS1A modules") {
-                break;
-            }
-        }
-        std::thread::spawn(move || for _ in lines {});
-        SimProcess { child }
-    }
-
-    fn kill(mut self) {
-        self.child.kill().unwrap();
-        self.child.wait().unwrap();
-    }
-}
-
-impl Drop for SimProcess {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
+fn start_sim(link: &Path, state: &Path, addrs: &str) -> SimProcess {
+    let link = format!("pty:{}", link.display());
+    let state = state.to_str().unwrap();
+    SimProcess::start(
+        &["sim", "ps1a", "--link", &link, "--addr", addrs, "--state-file", state],
+        "simulating PS1A modules",
+    )
 }
 
 #[test]
@@ -108,7 +70,7 @@ fn simulator_process_scan_params_home_move_and_limits() {
     let dir = tempfile::tempdir().unwrap();
     let (link, state, rec) =
         (dir.path().join("line"), dir.path().join("state.json"), dir.path().join("rec.json"));
-    let _sim = SimProcess::start(&link, &state, "2,5,11");
+    let _sim = start_sim(&link, &state, "2,5,11");
     let port = link.to_str().unwrap();
     let out = ok(&["ps1a", port, "scan", "--range", "0-15", "--json"], &rec);
     let found: Vec<u64> = serde_json::from_str::<serde_json::Value>(&out)
@@ -154,7 +116,7 @@ fn killing_the_simulator_mid_motion_is_detected_and_motion_refused_until_homed()
     let dir = tempfile::tempdir().unwrap();
     let (link, state, rec) =
         (dir.path().join("line"), dir.path().join("state.json"), dir.path().join("rec.json"));
-    let sim = SimProcess::start(&link, &state, "1");
+    let sim = start_sim(&link, &state, "1");
     let port = link.to_str().unwrap();
     ok(
         &["ps1a", port, "params", "set", "--addr", "1", "--max", "900000", "--vnrb", "200", "--vnnb", "20"],
@@ -174,7 +136,7 @@ fn killing_the_simulator_mid_motion_is_detected_and_motion_refused_until_homed()
     std::thread::sleep(Duration::from_millis(700));
     sim.kill();
     std::thread::sleep(Duration::from_millis(300));
-    let _sim = SimProcess::start(&link, &state, "1");
+    let _sim = start_sim(&link, &state, "1");
     let out = waiter.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "the waiting move must not report success");
