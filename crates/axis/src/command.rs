@@ -134,6 +134,23 @@ pub struct Capabilities {
 }
 
 impl Capabilities {
+    /// A positioning axis: every command supported, no optional readings or brake.
+    /// Drivers start from this and switch off what their device lacks.
+    pub const POSITIONING: Capabilities = Capabilities {
+        enable: true,
+        home: true,
+        move_absolute: true,
+        move_relative: true,
+        jog: true,
+        stop: true,
+        quick_stop: true,
+        fault_reset: true,
+        reports_velocity: false,
+        reports_current: false,
+        reports_following_error: false,
+        brake: false,
+    };
+
     /// True if this command kind is supported.
     pub fn supports(&self, command: &AxisCommand) -> bool {
         match command {

@@ -53,20 +53,8 @@ impl Axis for Kv01JointAxis {
     }
 
     fn capabilities(&self) -> Capabilities {
-        Capabilities {
-            enable: true,
-            home: false,
-            move_absolute: true,
-            move_relative: true,
-            jog: true,
-            stop: true,
-            quick_stop: true,
-            fault_reset: true,
-            reports_velocity: false,
-            reports_current: false,
-            reports_following_error: false,
-            brake: self.joint <= 5,
-        }
+        // The resolver is absolute: no homing.
+        Capabilities { home: false, brake: self.joint <= 5, ..Capabilities::POSITIONING }
     }
 
     fn scale(&self) -> &Scale {

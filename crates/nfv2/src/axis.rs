@@ -250,20 +250,7 @@ impl Axis for Nfv2Axis {
     }
 
     fn capabilities(&self) -> Capabilities {
-        Capabilities {
-            enable: true,
-            home: true,
-            move_absolute: true,
-            move_relative: true,
-            jog: true,
-            stop: true,
-            quick_stop: true,
-            fault_reset: true,
-            reports_velocity: true,
-            reports_current: true,
-            reports_following_error: false,
-            brake: false,
-        }
+        Capabilities { reports_velocity: true, reports_current: true, ..Capabilities::POSITIONING }
     }
 
     fn scale(&self) -> &Scale {

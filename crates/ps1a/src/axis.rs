@@ -330,20 +330,7 @@ impl Axis for Ps1aAxis {
     }
 
     fn capabilities(&self) -> Capabilities {
-        Capabilities {
-            enable: true,
-            home: true,
-            move_absolute: true,
-            move_relative: true,
-            jog: true,
-            stop: true,
-            quick_stop: true,
-            fault_reset: true,
-            reports_velocity: false,
-            reports_current: false,
-            reports_following_error: false,
-            brake: false,
-        }
+        Capabilities::POSITIONING
     }
 
     fn scale(&self) -> &Scale {
