@@ -77,9 +77,12 @@ fn an_impossible_cycle_is_warned_and_runs_at_the_wire_limit() {
     let stats = sched.stats();
     eprintln!("{plan}\n{stats}");
     assert!(!stats.feasible && stats.cycles > 100, "{stats}");
-    // It runs as fast as the line allows (current and inputs queries come on top).
+    // It runs as fast as the line allows (current and inputs queries come on top). The
+    // mean may land a hair under the computed limit (byte pacing and wire times round to
+    // nanoseconds differently), hence 0.5 % of slack below.
     assert!(
-        stats.mean >= plan.min_cycle && stats.mean.as_secs_f64() < plan.min_cycle.as_secs_f64() * 1.25,
+        stats.mean.as_secs_f64() >= plan.min_cycle.as_secs_f64() * 0.995
+            && stats.mean.as_secs_f64() < plan.min_cycle.as_secs_f64() * 1.25,
         "{stats}"
     );
     assert!(stats.utilisation > 0.7, "{stats}");
