@@ -1,0 +1,84 @@
+//! CAN transports for Motus.
+//!
+//! Every transport implements [`CanBus`]: send a frame, receive the next frame with a
+//! time-out. Transports are shared between threads (`&self` methods), so a master can
+//! receive on one thread and send from others.
+//!
+//! - [`memory`]: an in-process virtual bus for unit tests.
+//! - [`wire_time`]: how long a frame occupies a real bus at a bit rate.
+
+#![forbid(unsafe_code)]
+
+pub mod memory;
+pub mod wire_time;
+
+pub use memory::{MemoryHub, MemoryPort};
+pub use motus_canopen_protocol::CanFrame;
+
+use std::time::{Duration, Instant};
+
+/// Errors of a CAN transport.
+#[derive(Debug, thiserror::Error)]
+pub enum CanError {
+    /// The transport is closed (peer gone, hub stopped, port dropped).
+    #[error("CAN transport closed: {0}")]
+    Closed(String),
+    /// An operating-system error.
+    #[error("CAN transport I/O error: {0}")]
+    Io(#[from] std::io::Error),
+    /// The peer sent something this transport cannot understand.
+    #[error("CAN transport protocol error: {0}")]
+    Protocol(String),
+    /// A URI or option is invalid.
+    #[error("invalid CAN bus address: {0}")]
+    Address(String),
+}
+
+/// A frame as received, with the local time it arrived.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Received {
+    /// The frame.
+    pub frame: CanFrame,
+    /// When this process received it.
+    pub at: Instant,
+}
+
+/// A CAN bus endpoint: every frame sent is seen by every *other* endpoint of the bus
+/// (no echo to the sender, like a raw SocketCAN socket).
+pub trait CanBus: Send + Sync {
+    /// Queues one frame for transmission.
+    fn send(&self, frame: &CanFrame) -> Result<(), CanError>;
+    /// Waits up to `timeout` for the next frame; `Ok(None)` on time-out.
+    fn recv(&self, timeout: Duration) -> Result<Option<Received>, CanError>;
+    /// A short description for logs and errors (e.g. `socketcand://127.0.0.1:29536/can0`).
+    fn describe(&self) -> String;
+}
+
+impl<T: CanBus + ?Sized> CanBus for std::sync::Arc<T> {
+    fn send(&self, frame: &CanFrame) -> Result<(), CanError> {
+        (**self).send(frame)
+    }
+    fn recv(&self, timeout: Duration) -> Result<Option<Received>, CanError> {
+        (**self).recv(timeout)
+    }
+    fn describe(&self) -> String {
+        (**self).describe()
+    }
+}
+
+impl<T: CanBus + ?Sized> CanBus for Box<T> {
+    fn send(&self, frame: &CanFrame) -> Result<(), CanError> {
+        (**self).send(frame)
+    }
+    fn recv(&self, timeout: Duration) -> Result<Option<Received>, CanError> {
+        (**self).recv(timeout)
+    }
+    fn describe(&self) -> String {
+        (**self).describe()
+    }
+}
+
+/// Convenience: the deadline `timeout` from now.
+pub fn deadline(timeout: Duration) -> Instant {
+    Instant::now() + timeout
+}
