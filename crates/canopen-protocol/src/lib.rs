@@ -59,6 +59,7 @@ macro_rules! code_table {
 pub(crate) use code_table;
 
 pub mod abort;
+pub mod cia402;
 pub mod emcy;
 pub mod error;
 pub mod frame;
