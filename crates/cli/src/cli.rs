@@ -72,6 +72,8 @@ pub enum FrameFormat {
     Kv01,
     /// NFv2 frame (any number of commands and queries).
     Nfv2,
+    /// CANopen frame in candump notation, e.g. `581#4B64600000000000` (`<id>#<hex>`).
+    Canopen,
 }
 
 /// CRC checking of received frames.

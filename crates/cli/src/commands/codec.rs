@@ -13,8 +13,12 @@ pub fn decode(
     direction: DirectionArg,
     revision: &str,
 ) -> Result<()> {
+    if format == FrameFormat::Canopen {
+        return decode_canopen(text);
+    }
     let bytes = hex::parse(text)?;
     let json = match format {
+        FrameFormat::Canopen => unreachable_canopen()?,
         FrameFormat::Ps1aCmd => serde_json::to_string(
             &CommandFrame::decode(&bytes)
                 .with_context(|| format!("invalid PS1A command {}", hex::format(&bytes)))?,
@@ -57,7 +61,11 @@ pub fn decode(
 
 /// Encodes and prints uppercase hex.
 pub fn encode(format: FrameFormat, json: &str, revision: &str) -> Result<()> {
+    if format == FrameFormat::Canopen {
+        return encode_canopen(json);
+    }
     let bytes = match format {
+        FrameFormat::Canopen => unreachable_canopen()?,
         FrameFormat::Ps1aCmd => serde_json::from_str::<CommandFrame>(json)
             .context(
                 "invalid PS1A command JSON (e.g. {\"addr\":3,\"command\":\"move_absolute\",\"target\":1000})",
@@ -88,4 +96,42 @@ pub fn encode(format: FrameFormat, json: &str, revision: &str) -> Result<()> {
 /// Parses an NFv2 revision name.
 pub fn nfv2_revision(text: &str) -> Result<motus_nfv2_protocol::Revision> {
     text.parse::<motus_nfv2_protocol::Revision>().map_err(|e| anyhow::anyhow!("--revision {text:?}: {e}"))
+}
+
+fn unreachable_canopen<T>() -> Result<T> {
+    anyhow::bail!("internal: CANopen frames are handled before hex parsing")
+}
+
+/// The JSON `decode canopen` prints: the frame, a one-line description and the message.
+#[derive(serde::Serialize)]
+struct CanOpenDecoded<'a> {
+    frame: String,
+    text: String,
+    #[serde(flatten)]
+    message: &'a motus_canopen_protocol::CanOpenMessage,
+}
+
+/// Decodes a CANopen frame in candump notation and prints one JSON object whose `text`
+/// names the service, node and content (e.g. "SDO upload response 0x6064:00 = 1000").
+fn decode_canopen(text: &str) -> Result<()> {
+    use motus_canopen_protocol::{CanFrame, CanOpenMessage};
+    let frame: CanFrame = text
+        .trim()
+        .parse()
+        .with_context(|| format!("invalid CAN frame {text:?} (expected candump notation <id>#<hex>, e.g. 581#4B64600000000000)"))?;
+    let message = CanOpenMessage::decode(&frame);
+    let out = CanOpenDecoded { frame: frame.to_string(), text: message.to_string(), message: &message };
+    println!("{}", serde_json::to_string(&out)?);
+    Ok(())
+}
+
+/// Encodes a CANopen message given as JSON (the form `decode canopen` prints; `frame`
+/// and `text` are ignored) and prints the frame in candump notation.
+fn encode_canopen(json: &str) -> Result<()> {
+    let message: motus_canopen_protocol::CanOpenMessage = serde_json::from_str(json).context(
+        "invalid CANopen JSON (e.g. {\"type\":\"nmt\",\"command\":1,\"node\":5})",
+    )?;
+    let frame = message.encode().context("cannot encode the CANopen message")?;
+    println!("{frame}");
+    Ok(())
 }
