@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Installs the independent implementations the interoperability tests compare Motus
+# against (specs/oracles.md): python-can and canopen (pinned, from PyPI) and tshark.
+# Idempotent: does nothing when they are already there.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+if ! python3 -c 'import can, canopen' 2>/dev/null; then
+  echo "installing python-can and canopen (tests/python/requirements.txt)"
+  python3 -m pip install --quiet --disable-pip-version-check -r tests/python/requirements.txt
+fi
+if ! command -v tshark >/dev/null; then
+  if [ "$(id -u)" = 0 ]; then
+    echo "installing tshark"
+    echo "wireshark-common wireshark-common/install-setuid boolean false" | debconf-set-selections
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -q tshark >/dev/null || {
+      apt-get update -q >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -q tshark >/dev/null; }
+  else
+    echo "tshark is needed by the tests: sudo apt-get install tshark" >&2
+    exit 1
+  fi
+fi
