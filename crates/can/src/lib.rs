@@ -5,15 +5,28 @@
 //! receive on one thread and send from others.
 //!
 //! - [`memory`]: an in-process virtual bus for unit tests.
+//! - [`socketcand`]: the socketcand protocol: a TCP hub that is a virtual bus shared with
+//!   independent tools (python-can, python-canopen), and a client of hubs and daemons.
+//! - [`socketcan`]: real adapters through Linux SocketCAN.
+//! - [`slcan`]: Lawicel ASCII adapters on a serial port.
+//! - [`decorate`]: wrappers that log (candump, pcap), inject faults or measure bus load.
 //! - [`wire_time`]: how long a frame occupies a real bus at a bit rate.
+//! - [`open_bus`]: a bus from a URI.
 
 #![forbid(unsafe_code)]
 
+pub mod decorate;
 pub mod memory;
+pub mod slcan;
+#[cfg(target_os = "linux")]
+pub mod socketcan;
+pub mod socketcand;
+pub mod uri;
 pub mod wire_time;
 
 pub use memory::{MemoryHub, MemoryPort};
 pub use motus_canopen_protocol::CanFrame;
+pub use uri::{open_bus, BusUri};
 
 use std::time::{Duration, Instant};
 
@@ -32,6 +45,14 @@ pub enum CanError {
     /// A URI or option is invalid.
     #[error("invalid CAN bus address: {0}")]
     Address(String),
+    /// A transport cannot be opened on this machine (no driver, no such interface).
+    #[error("{what} unavailable: {reason}")]
+    Unavailable {
+        /// What was asked for, e.g. `SocketCAN interface "vcan0"`.
+        what: String,
+        /// Why it cannot be opened.
+        reason: String,
+    },
 }
 
 /// A frame as received, with the local time it arrived.

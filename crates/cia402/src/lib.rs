@@ -15,6 +15,7 @@
 #![forbid(unsafe_code)]
 
 mod axis;
+pub mod canopen_io;
 mod drive;
 mod error;
 pub mod group;
@@ -22,6 +23,7 @@ mod io;
 mod settings;
 
 pub use axis::Cia402Axis;
+pub use canopen_io::{CanopenDrive, MasterSync};
 pub use drive::{Drive, MoveKind};
 pub use error::DriveError;
 pub use io::{DriveIo, IoError};

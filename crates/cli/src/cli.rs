@@ -59,6 +59,13 @@ pub enum Command {
     Pantilt(PanTiltArgs),
     /// Start simulated devices and run them through a demonstration sequence.
     Demo(DemoArgs),
+    /// The virtual CAN bus (socketcand hub).
+    #[command(subcommand)]
+    Canbus(crate::cli_can::CanbusCommand),
+    /// CANopen master: NMT, SDO, PDO, LSS, scan, dump.
+    Canopen(crate::cli_can::CanopenArgs),
+    /// The omnidirectional robot on three CANopen drives.
+    Robot(crate::cli_can::RobotArgs),
 }
 
 /// Frame formats of `decode` / `encode`.
@@ -105,6 +112,10 @@ pub enum SimCommand {
     Kv01(SimKv01Args),
     /// Simulated 1209A axis controllers (NFv2) on one line.
     Nfv2(SimNfv2Args),
+    /// Simulated IclA CiA 402 drives on a CAN bus (optionally forming the robot).
+    Icla(crate::cli_can::SimIclaArgs),
+    /// The simulated optical-mouse odometry converter on a pty.
+    Mouse(crate::cli_can::SimMouseArgs),
 }
 
 /// Options of `motus sim nfv2`.

@@ -3,6 +3,7 @@
 #![forbid(unsafe_code)]
 
 mod cli;
+mod cli_can;
 mod commands;
 mod hex;
 mod progress;

@@ -9,6 +9,9 @@ use std::time::Duration;
 
 /// Opens the axis a URI names.
 pub fn open(uri_text: &str) -> Result<Box<dyn Axis>> {
+    if let Some(rest) = uri_text.strip_prefix("cia402://") {
+        return open_cia402(rest);
+    }
     let uri: DeviceUri = uri_text.parse()?;
     match uri.scheme.as_str() {
         "ps1a" => Ok(Box::new(motus_ps1a::open_axis(&uri).map_err(|e| anyhow::anyhow!("{e}"))?)),
@@ -25,8 +28,52 @@ pub fn open(uri_text: &str) -> Result<Box<dyn Axis>> {
             Ok(Box::new(motus_kv01::Kv01JointAxis::new(arm, joint)?))
         }
         "nfv2" => Ok(Box::new(motus_nfv2::open_axis(&uri).map_err(|e| anyhow::anyhow!("{e}"))?)),
-        other => bail!("unknown device family {other:?} in {uri_text:?} (supported: ps1a, kv01, nfv2)"),
+        other => {
+            bail!("unknown device family {other:?} in {uri_text:?} (supported: ps1a, kv01, nfv2, cia402)")
+        }
     }
+}
+
+/// `cia402://<bus uri>?node=N[&inc_per_rev=213.33][&pdo=1]`: a CiA 402 drive on a CANopen
+/// bus, e.g. `cia402://socketcand://127.0.0.1:29536/can0?node=2`. Positions are in
+/// increments; SI is radians of the output shaft (`inc_per_rev` increments per turn).
+fn open_cia402(rest: &str) -> Result<Box<dyn Axis>> {
+    let (bus, query) = rest
+        .rsplit_once('?')
+        .context("cia402 URIs need ?node=N, e.g. cia402://socketcand://127.0.0.1:29536/can0?node=2")?;
+    let mut node = None;
+    let mut inc_per_rev = 12.0 * 160.0 / 9.0;
+    let mut pdo = true;
+    for kv in query.split('&') {
+        let (k, v) = kv.split_once('=').with_context(|| format!("{kv:?}: expected key=value"))?;
+        match k {
+            "node" => node = Some(v.parse::<u8>().with_context(|| format!("node={v}: expected 1..127"))?),
+            "inc_per_rev" => inc_per_rev = v.parse::<f64>().with_context(|| format!("inc_per_rev={v}"))?,
+            "pdo" => pdo = v != "0",
+            other => bail!("unknown parameter {other:?} in a cia402 URI (node, inc_per_rev, pdo)"),
+        }
+    }
+    let node = node.filter(|n| (1..=127).contains(n)).context("cia402 URIs need ?node=1..127")?;
+    let master = super::canopen::open_master(bus)?;
+    let deadline = std::time::Instant::now() + Duration::from_secs(5);
+    while master.node_state(node).is_none() {
+        if std::time::Instant::now() > deadline {
+            bail!("node {node} on {bus}: no boot-up or heartbeat within 5 s");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let mut io = motus_cia402::CanopenDrive::new(master, node);
+    if pdo {
+        io.use_pdos().map_err(|e| anyhow::anyhow!("{e}"))?;
+    }
+    let drive = motus_cia402::Drive::new(io, motus_cia402::DriveSettings::default());
+    let scale = motus_axis::Scale::new(motus_axis::UnitKind::Rotary, std::f64::consts::TAU / inc_per_rev)?;
+    Ok(Box::new(motus_cia402::Cia402Axis::new(
+        drive,
+        format!("cia402:{bus}#{node}"),
+        scale,
+        motus_cia402::Profile::ICLA_SEED,
+    )))
 }
 
 struct Units {

@@ -115,10 +115,11 @@ struct CanOpenDecoded<'a> {
 /// names the service, node and content (e.g. "SDO upload response 0x6064:00 = 1000").
 fn decode_canopen(text: &str) -> Result<()> {
     use motus_canopen_protocol::{CanFrame, CanOpenMessage};
-    let frame: CanFrame = text
-        .trim()
-        .parse()
-        .with_context(|| format!("invalid CAN frame {text:?} (expected candump notation <id>#<hex>, e.g. 581#4B64600000000000)"))?;
+    let frame: CanFrame = text.trim().parse().with_context(|| {
+        format!(
+            "invalid CAN frame {text:?} (expected candump notation <id>#<hex>, e.g. 581#4B64600000000000)"
+        )
+    })?;
     let message = CanOpenMessage::decode(&frame);
     let out = CanOpenDecoded { frame: frame.to_string(), text: message.to_string(), message: &message };
     println!("{}", serde_json::to_string(&out)?);
@@ -128,9 +129,8 @@ fn decode_canopen(text: &str) -> Result<()> {
 /// Encodes a CANopen message given as JSON (the form `decode canopen` prints; `frame`
 /// and `text` are ignored) and prints the frame in candump notation.
 fn encode_canopen(json: &str) -> Result<()> {
-    let message: motus_canopen_protocol::CanOpenMessage = serde_json::from_str(json).context(
-        "invalid CANopen JSON (e.g. {\"type\":\"nmt\",\"command\":1,\"node\":5})",
-    )?;
+    let message: motus_canopen_protocol::CanOpenMessage = serde_json::from_str(json)
+        .context("invalid CANopen JSON (e.g. {\"type\":\"nmt\",\"command\":1,\"node\":5})")?;
     let frame = message.encode().context("cannot encode the CANopen message")?;
     println!("{frame}");
     Ok(())

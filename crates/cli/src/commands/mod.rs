@@ -1,12 +1,16 @@
 //! Command implementations, one module per top-level command.
 
 mod axis;
+mod canbus;
+mod canopen;
 mod codec;
 mod demo;
 mod kv01;
 mod nfv2;
 mod ps1a;
+mod robot;
 mod sim;
+mod sim_can;
 
 use crate::cli::Command;
 use anyhow::Result;
@@ -25,6 +29,9 @@ pub fn run(command: Command) -> Result<()> {
         Command::Nfv2(n) => nfv2::run_nfv2(n),
         Command::Pantilt(p) => nfv2::run_pantilt(p),
         Command::Demo(d) => demo::run(d),
+        Command::Canbus(c) => canbus::run(c),
+        Command::Canopen(c) => canopen::run(c),
+        Command::Robot(r) => robot::run(r),
     }
 }
 

@@ -12,6 +12,8 @@ pub fn run(cmd: SimCommand) -> Result<()> {
         SimCommand::Ps1a(args) => ps1a(args),
         SimCommand::Kv01(args) => kv01(args),
         SimCommand::Nfv2(args) => nfv2(args),
+        SimCommand::Icla(args) => super::sim_can::icla(args),
+        SimCommand::Mouse(args) => super::sim_can::mouse(args),
     }
 }
 

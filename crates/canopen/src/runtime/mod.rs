@@ -1,0 +1,394 @@
+//! The threaded master: one receive thread dispatches frames; API calls block the
+//! calling thread only. SDO transfers to different nodes run in parallel (one channel
+//! per node), transfers to the same node are serialised.
+
+mod lss_ops;
+mod sdo_ops;
+mod sync_producer;
+
+pub use sdo_ops::{DumpRow, NodeInfo};
+pub use sync_producer::SyncProducer;
+
+use std::collections::HashMap;
+use std::ops::RangeInclusive;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{channel, Receiver, Sender};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use motus_can::{CanBus, CanFrame, Received};
+use motus_canopen_protocol::message::LSS_SLAVE_TO_MASTER;
+use motus_canopen_protocol::{LssResponse, NmtCommand, NmtState, SdoResponse};
+
+use crate::eds::ObjectDictionary;
+use crate::emcy::{EmcyParse, Emergency};
+use crate::error::MasterError;
+use crate::heartbeat::{HeartbeatConsumer, HeartbeatEvent};
+use crate::nmt::{command_frame, parse_heartbeat, NodeChange, NodeTable};
+use crate::sdo_client::SDO_RESPONSE_BASE;
+
+/// Something the master observed on the bus.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum MasterEvent {
+    /// A node sent its boot-up message.
+    Booted {
+        /// Node.
+        node: u8,
+    },
+    /// A node's heartbeat reports a new state.
+    StateChanged {
+        /// Node.
+        node: u8,
+        /// Previous state (None = first heartbeat seen).
+        from: Option<NmtState>,
+        /// New state.
+        to: NmtState,
+    },
+    /// A monitored node's heartbeat stopped (reported once).
+    HeartbeatLost {
+        /// Node.
+        node: u8,
+        /// Last heartbeat (or start of monitoring).
+        last_seen: Instant,
+    },
+    /// A lost node's heartbeat came back.
+    HeartbeatRecovered {
+        /// Node.
+        node: u8,
+        /// State it reports.
+        state: NmtState,
+    },
+    /// An emergency message.
+    Emergency(Emergency),
+}
+
+/// COB-ID filter of a subscription.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CobFilter {
+    /// One COB-ID.
+    Id(u32),
+    /// An inclusive range.
+    Range(RangeInclusive<u32>),
+}
+
+impl CobFilter {
+    fn matches(&self, id: u32) -> bool {
+        match self {
+            Self::Id(x) => *x == id,
+            Self::Range(r) => r.contains(&id),
+        }
+    }
+}
+
+impl From<u32> for CobFilter {
+    fn from(id: u32) -> Self {
+        Self::Id(id)
+    }
+}
+
+impl From<RangeInclusive<u32>> for CobFilter {
+    fn from(r: RangeInclusive<u32>) -> Self {
+        Self::Range(r)
+    }
+}
+
+/// Counters of the receive path.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MasterStats {
+    /// Frames received.
+    pub frames_received: u64,
+    /// Frames in a service's COB-ID range that do not fit its layout (an SDO response
+    /// that decodes to nothing, a heartbeat with DLC != 1, an EMCY with DLC != 8, an
+    /// unknown LSS reply); counted, never acted on.
+    pub frames_malformed: u64,
+    /// SDO responses nobody was waiting for.
+    pub sdo_unsolicited: u64,
+    /// Frames sent.
+    pub frames_sent: u64,
+    /// Receive errors of the transport.
+    pub transport_errors: u64,
+}
+
+#[derive(Default)]
+struct Stats {
+    received: AtomicU64,
+    malformed: AtomicU64,
+    unsolicited: AtomicU64,
+    sent: AtomicU64,
+    transport_errors: AtomicU64,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+pub(crate) struct Inner {
+    bus: Arc<dyn CanBus>,
+    running: AtomicBool,
+    sdo_timeout: Mutex<Duration>,
+    lss_timeout: Mutex<Duration>,
+    sdo_waiters: Mutex<HashMap<u8, Sender<Received>>>,
+    sdo_locks: Mutex<HashMap<u8, Arc<Mutex<()>>>>,
+    nodes: Mutex<NodeTable>,
+    nodes_changed: Condvar,
+    heartbeat: Mutex<HeartbeatConsumer>,
+    event_subs: Mutex<Vec<Sender<MasterEvent>>>,
+    pdo_subs: Mutex<Vec<(CobFilter, Sender<Received>)>>,
+    lss_waiter: Mutex<Option<Sender<LssResponse>>>,
+    lss_lock: Mutex<()>,
+    eds: Mutex<Option<Arc<ObjectDictionary>>>,
+    stats: Stats,
+}
+
+impl Inner {
+    pub(crate) fn send(&self, frame: &CanFrame, context: impl FnOnce() -> String) -> Result<(), MasterError> {
+        self.bus.send(frame).map_err(|e| MasterError::transport(context(), e))?;
+        self.stats.sent.fetch_add(1, Ordering::Relaxed);
+        Ok(())
+    }
+
+    fn emit(&self, event: MasterEvent) {
+        tracing::debug!(?event, "master event");
+        lock(&self.event_subs).retain(|tx| tx.send(event.clone()).is_ok());
+    }
+
+    fn dispatch(&self, r: Received) {
+        self.stats.received.fetch_add(1, Ordering::Relaxed);
+        let frame = &r.frame;
+        let id = frame.id();
+        {
+            let mut subs = lock(&self.pdo_subs);
+            if !subs.is_empty() && !frame.is_extended() {
+                subs.retain(|(f, tx)| !f.matches(id) || tx.send(r.clone()).is_ok());
+            }
+        }
+        if frame.is_extended() {
+            return;
+        }
+        match id {
+            0x581..=0x5FF => {
+                if frame.is_remote() || SdoResponse::decode(frame.data()).is_none() {
+                    self.malformed(frame);
+                    return;
+                }
+                let node = u8::try_from(id - SDO_RESPONSE_BASE).unwrap_or(0);
+                let waiter = lock(&self.sdo_waiters).get(&node).cloned();
+                match waiter {
+                    Some(tx) if tx.send(r.clone()).is_ok() => {}
+                    _ => {
+                        self.stats.unsolicited.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+            }
+            0x701..=0x77F => match parse_heartbeat(frame) {
+                Some(Ok((node, state))) => self.on_heartbeat(node, state, r.at),
+                _ => self.malformed(frame),
+            },
+            0x081..=0x0FF => match Emergency::parse(frame) {
+                EmcyParse::Emergency(e) => self.emit(MasterEvent::Emergency(e)),
+                EmcyParse::Malformed => self.malformed(frame),
+                EmcyParse::NotEmcy => {}
+            },
+            LSS_SLAVE_TO_MASTER => match (frame.is_remote(), LssResponse::decode(frame.data())) {
+                (false, Some(resp)) => {
+                    if let Some(tx) = lock(&self.lss_waiter).as_ref() {
+                        let _ = tx.send(resp);
+                    }
+                }
+                _ => self.malformed(frame),
+            },
+            _ => {}
+        }
+    }
+
+    fn malformed(&self, frame: &CanFrame) {
+        tracing::debug!(%frame, "malformed frame ignored");
+        self.stats.malformed.fetch_add(1, Ordering::Relaxed);
+    }
+
+    fn on_heartbeat(&self, node: u8, state: NmtState, at: Instant) {
+        let change = lock(&self.nodes).on_heartbeat(node, state, at);
+        self.nodes_changed.notify_all();
+        let hb_events = lock(&self.heartbeat).on_heartbeat(node, state, at);
+        for e in hb_events {
+            self.emit_heartbeat(e);
+        }
+        if let Some(NodeChange::StateChanged { node, from, to }) = change {
+            self.emit(MasterEvent::StateChanged { node, from, to });
+        }
+    }
+
+    fn emit_heartbeat(&self, e: HeartbeatEvent) {
+        self.emit(match e {
+            HeartbeatEvent::NodeLost { node, last_seen } => MasterEvent::HeartbeatLost { node, last_seen },
+            HeartbeatEvent::NodeRecovered { node, state } => MasterEvent::HeartbeatRecovered { node, state },
+            HeartbeatEvent::NodeBooted { node } => MasterEvent::Booted { node },
+        });
+    }
+
+    fn receive_loop(self: Arc<Self>) {
+        while self.running.load(Ordering::Acquire) {
+            match self.bus.recv(Duration::from_millis(5)) {
+                Ok(Some(r)) => self.dispatch(r),
+                Ok(None) => {}
+                Err(e) => {
+                    self.stats.transport_errors.fetch_add(1, Ordering::Relaxed);
+                    tracing::warn!(error = %e, bus = %self.bus.describe(), "CAN receive failed");
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+            }
+            let lost = lock(&self.heartbeat).poll(Instant::now());
+            for e in lost {
+                self.emit_heartbeat(e);
+            }
+        }
+    }
+}
+
+/// A CANopen master on one CAN bus. All methods take `&self` and are thread-safe.
+pub struct Master {
+    inner: Arc<Inner>,
+    rx_thread: Option<JoinHandle<()>>,
+}
+
+impl Master {
+    /// Starts a master on `bus` (spawns its receive thread).
+    pub fn new(bus: Arc<dyn CanBus>) -> Master {
+        let inner = Arc::new(Inner {
+            bus,
+            running: AtomicBool::new(true),
+            sdo_timeout: Mutex::new(Duration::from_millis(500)),
+            lss_timeout: Mutex::new(Duration::from_millis(500)),
+            sdo_waiters: Mutex::default(),
+            sdo_locks: Mutex::default(),
+            nodes: Mutex::default(),
+            nodes_changed: Condvar::new(),
+            heartbeat: Mutex::default(),
+            event_subs: Mutex::default(),
+            pdo_subs: Mutex::default(),
+            lss_waiter: Mutex::default(),
+            lss_lock: Mutex::default(),
+            eds: Mutex::default(),
+            stats: Stats::default(),
+        });
+        let rx = Arc::clone(&inner);
+        let rx_thread = std::thread::Builder::new()
+            .name("canopen-master-rx".into())
+            .spawn(move || rx.receive_loop())
+            .map_err(|e| tracing::error!(error = %e, "cannot spawn the receive thread"))
+            .ok();
+        Master { inner, rx_thread }
+    }
+
+    /// Sends an NMT command to `node` (0 = all nodes).
+    pub fn nmt(&self, node: u8, command: NmtCommand) -> Result<(), MasterError> {
+        if node > 127 {
+            return Err(MasterError::InvalidArgument(format!("NMT node {node} outside 0..=127")));
+        }
+        let frame = command_frame(node, command).map_err(|e| MasterError::InvalidArgument(e.to_string()))?;
+        self.inner.send(&frame, || format!("sending NMT {command} to node {node}"))
+    }
+
+    /// Sends a PDO (or any raw frame with a standard id).
+    pub fn send_pdo(&self, cob_id: u32, data: &[u8]) -> Result<(), MasterError> {
+        let frame = CanFrame::new(cob_id, data).map_err(|e| MasterError::InvalidArgument(e.to_string()))?;
+        self.inner.send(&frame, || format!("sending PDO 0x{cob_id:03X}"))
+    }
+
+    /// Sends one frame as is.
+    pub fn send_frame(&self, frame: &CanFrame) -> Result<(), MasterError> {
+        self.inner.send(frame, || format!("sending {frame}"))
+    }
+
+    /// Receives every frame whose COB-ID matches `filter` (from now on).
+    pub fn subscribe(&self, filter: impl Into<CobFilter>) -> Receiver<Received> {
+        let (tx, rx) = channel();
+        lock(&self.inner.pdo_subs).push((filter.into(), tx));
+        rx
+    }
+
+    /// Receives every [`MasterEvent`] from now on.
+    pub fn events(&self) -> Receiver<MasterEvent> {
+        let (tx, rx) = channel();
+        lock(&self.inner.event_subs).push(tx);
+        rx
+    }
+
+    /// Monitors `node`'s heartbeat: [`MasterEvent::HeartbeatLost`] once when none arrived
+    /// for longer than `consumer_time` (counted from now), then
+    /// [`MasterEvent::HeartbeatRecovered`]. A zero time stops monitoring.
+    pub fn monitor_heartbeat(&self, node: u8, consumer_time: Duration) {
+        lock(&self.inner.heartbeat).monitor(node, consumer_time, Instant::now());
+    }
+
+    /// The NMT state `node` last reported (boot-up or heartbeat).
+    pub fn node_state(&self, node: u8) -> Option<NmtState> {
+        lock(&self.inner.nodes).state(node)
+    }
+
+    /// When `node` was last heard (boot-up or heartbeat).
+    pub fn last_heartbeat(&self, node: u8) -> Option<Instant> {
+        lock(&self.inner.nodes).get(node).map(|e| e.last_seen)
+    }
+
+    /// Waits for a boot-up message of `node` received after this call.
+    pub fn wait_boot(&self, node: u8, timeout: Duration) -> Result<(), MasterError> {
+        let boots = |t: &NodeTable| t.get(node).map_or(0, |e| e.boots);
+        let guard = lock(&self.inner.nodes);
+        let before = boots(&guard);
+        let (_g, res) = self
+            .inner
+            .nodes_changed
+            .wait_timeout_while(guard, timeout, |t| boots(t) == before)
+            .unwrap_or_else(|p| p.into_inner());
+        if res.timed_out() {
+            return Err(MasterError::NodeTimeout { node, what: "boot-up".into(), timeout });
+        }
+        Ok(())
+    }
+
+    /// Waits until `node` reports `state` in a heartbeat (returns at once if it already did).
+    pub fn wait_state(&self, node: u8, state: NmtState, timeout: Duration) -> Result<(), MasterError> {
+        let guard = lock(&self.inner.nodes);
+        let (_g, res) = self
+            .inner
+            .nodes_changed
+            .wait_timeout_while(guard, timeout, |t| t.state(node) != Some(state))
+            .unwrap_or_else(|p| p.into_inner());
+        if res.timed_out() {
+            return Err(MasterError::NodeTimeout {
+                node,
+                what: format!("heartbeat in state {state}"),
+                timeout,
+            });
+        }
+        Ok(())
+    }
+
+    /// Counters of the receive path.
+    pub fn stats(&self) -> MasterStats {
+        let s = &self.inner.stats;
+        MasterStats {
+            frames_received: s.received.load(Ordering::Relaxed),
+            frames_malformed: s.malformed.load(Ordering::Relaxed),
+            sdo_unsolicited: s.unsolicited.load(Ordering::Relaxed),
+            frames_sent: s.sent.load(Ordering::Relaxed),
+            transport_errors: s.transport_errors.load(Ordering::Relaxed),
+        }
+    }
+
+    /// The bus description.
+    pub fn describe(&self) -> String {
+        self.inner.bus.describe()
+    }
+}
+
+impl Drop for Master {
+    fn drop(&mut self) {
+        self.inner.running.store(false, Ordering::Release);
+        if let Some(h) = self.rx_thread.take() {
+            let _ = h.join();
+        }
+    }
+}

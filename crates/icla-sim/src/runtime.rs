@@ -1,0 +1,58 @@
+//! The runtime: serves several simulated nodes on one bus connection. It loops
+//! `recv(1 ms)`, hands every frame to every drive, polls every drive's timers and sends what
+//! they produce (the bus does not echo a frame to its sender, so nodes on one connection
+//! do not see each other's frames, which CANopen slaves never need).
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::time::{Duration, Instant};
+
+use motus_can::{CanBus, CanError};
+
+use crate::drive::SimDrive;
+
+/// Drives shared between the runtime and a test or world model.
+pub type SharedDrives = Arc<Mutex<Vec<SimDrive>>>;
+
+/// Locks shared drives (a poisoned lock is still usable: the drives hold no invariants
+/// that a panic elsewhere could break).
+pub fn lock(drives: &SharedDrives) -> MutexGuard<'_, Vec<SimDrive>> {
+    drives.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// Serves `drives` on `bus` until `stop` is set; returns the drives.
+pub fn run(
+    bus: Arc<dyn CanBus>,
+    drives: Vec<SimDrive>,
+    stop: Arc<AtomicBool>,
+) -> Result<Vec<SimDrive>, CanError> {
+    let shared = Arc::new(Mutex::new(drives));
+    run_shared(bus, Arc::clone(&shared), stop)?;
+    let drives = std::mem::take(&mut *lock(&shared));
+    Ok(drives)
+}
+
+/// Serves shared drives on `bus` until `stop` is set (the caller may lock them meanwhile).
+pub fn run_shared(bus: Arc<dyn CanBus>, drives: SharedDrives, stop: Arc<AtomicBool>) -> Result<(), CanError> {
+    let mut out = Vec::new();
+    while !stop.load(Ordering::Relaxed) {
+        let received = bus.recv(Duration::from_millis(1))?;
+        {
+            let mut guard = lock(&drives);
+            if let Some(r) = &received {
+                for d in guard.iter_mut() {
+                    out.extend(d.handle(&r.frame, r.at));
+                }
+            }
+            let now = Instant::now();
+            for d in guard.iter_mut() {
+                out.extend(d.poll(now));
+            }
+        }
+        for f in out.drain(..) {
+            tracing::trace!(frame = %f, "sim sends");
+            bus.send(&f)?;
+        }
+    }
+    Ok(())
+}

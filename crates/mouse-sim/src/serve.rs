@@ -1,0 +1,71 @@
+//! Serving the sensor on a link: one packet every period, paced at the line's baud rate
+//! (9600 bit/s 8N1: 1.04 ms per byte, 7.29 ms per packet).
+
+use std::io;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use motus_serial::{sleep_until, Link};
+
+use crate::sensor::MouseSensor;
+
+/// What [`serve`] did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ServeStats {
+    /// Packets sent.
+    pub packets: u64,
+    /// Bytes written (packets and garbage).
+    pub bytes: u64,
+    /// Periods that started late because the previous write took longer than a period
+    /// (the line was busy: long garbage bursts, or a period shorter than a packet).
+    pub late_periods: u64,
+}
+
+/// Sends the sensor's packets on `link` until `stop` is set, then one last packet with
+/// the counts still owed. Bytes leave one by one at the link's baud rate (as
+/// [`motus_serial::Paced`] does; the link is borrowed so a pty outlives the run and a host
+/// can read what is still buffered); a period starts at `start + k * period`, or when the
+/// line is free if that is later. The one-way converter reads nothing: input from the
+/// host is discarded.
+///
+/// # Errors
+/// An IO error of the link.
+pub fn serve(link: &mut dyn Link, sensor: &mut MouseSensor, stop: &AtomicBool) -> io::Result<ServeStats> {
+    let char_time = link.line().char_time();
+    let period = sensor.config().period;
+    let mut stats = ServeStats::default();
+    let mut due = Instant::now() + period;
+    let mut scratch = [0u8; 64];
+    loop {
+        // Wait for the period in short slices so a stop is seen quickly.
+        while Instant::now() < due && !stop.load(Ordering::Relaxed) {
+            let left = due.saturating_duration_since(Instant::now());
+            if left > Duration::from_millis(2) {
+                // Discards anything the host wrote (the converter only transmits).
+                let _ = link.read(&mut scratch, Duration::from_millis(1))?;
+            } else {
+                sleep_until(due);
+            }
+        }
+        let stopping = stop.load(Ordering::Relaxed);
+        let bytes = sensor.next_bytes();
+        let mut t = Instant::now();
+        for b in &bytes {
+            t += char_time;
+            sleep_until(t);
+            link.write_all(std::slice::from_ref(b))?;
+        }
+        stats.packets += 1;
+        stats.bytes += bytes.len() as u64;
+        if stopping {
+            tracing::debug!(packets = stats.packets, "mouse sensor stopped");
+            return Ok(stats);
+        }
+        due += period;
+        let now = Instant::now();
+        if due < now {
+            stats.late_periods += 1;
+            due = now;
+        }
+    }
+}

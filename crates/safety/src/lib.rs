@@ -1,0 +1,33 @@
+//! Predictive collision supervisor for servo machines (the juggler's `SafeToRun`),
+//! after specs/juggler-safety.md. Pure and protocol-independent: no IO and no clocks;
+//! samples and time are passed in.
+//!
+//! - [`model`]: axis models and their validation.
+//! - [`predict`]: reachable positions until standstill (worst-case acceleration during the
+//!   horizon, then braking).
+//! - [`expr`] and [`rules`]: rule expressions (limits, region, collision, interlocks,
+//!   `&&`/`||`/`!`) and the TOML configuration.
+//! - [`supervisor`]: per-cycle evaluation, [`supervisor::Lease`], diagnosis.
+//! - [`integrity`]: SHA-256 fingerprint of the configuration, change report, admin approval.
+//! - [`trace`]: offline evaluation of a CSV trace.
+//! - [`sim`]: a simulated juggler for tests and benchmarks.
+//!
+//! There is deliberately no way to set SafeToRun from outside: it only results from
+//! [`supervisor::Supervisor::evaluate`].
+
+pub mod expr;
+pub mod integrity;
+pub mod model;
+pub mod predict;
+pub mod rules;
+pub mod sim;
+pub mod supervisor;
+pub mod trace;
+
+pub use integrity::{AdminToken, DriveParameters, Fingerprint, Integrity, IntegrityError, Snapshot};
+pub use model::{AxisModel, Limits, ModelError, Unit, UpDown};
+pub use rules::{ConfigError, RuleSet, SafetyConfig};
+pub use supervisor::{CycleInput, Decision, Diagnosis, Lease, Mode, Sample, Supervisor};
+
+/// The juggler's rule set shipped with the crate (`examples/juggler.toml`).
+pub const JUGGLER_TOML: &str = include_str!("../examples/juggler.toml");
