@@ -50,6 +50,20 @@ fn lss_configures_three_unconfigured_drives_as_nodes_2_3_4_and_sets_20_kbit() {
     let mut ids: Vec<_> = motus_icla_sim::lock(sim.drives()).iter().map(|d| d.node_id()).collect();
     ids.sort_unstable();
     assert_eq!(ids, vec![Some(2), Some(3), Some(4)]);
+    // Bit rate: 50 kbit/s on all three, then back to the robot's 20 kbit/s (LSS table
+    // index 7), each time configured, stored and activated on every node.
+    for (bitrate, index) in [(50_000u32, 6u8), (20_000, 7)] {
+        master.lss_switch_global(LssMode::Configuration).unwrap();
+        master.lss_configure_bit_timing(bitrate).unwrap();
+        master.lss_store().unwrap();
+        master.lss_activate_bit_timing(50).unwrap();
+        std::thread::sleep(Duration::from_millis(150));
+        master.lss_switch_global(LssMode::Waiting).unwrap();
+        for d in motus_icla_sim::lock(sim.drives()).iter() {
+            assert_eq!(d.lss().bitrate(), bitrate, "node {:?}", d.node_id());
+            assert_eq!(d.lss().stored().1, index, "stored table index");
+        }
+    }
 }
 
 fn robot_on(hub: &Hub, sim: &SimRobot) -> Robot<CanopenWheels> {
