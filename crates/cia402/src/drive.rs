@@ -278,6 +278,42 @@ impl<Io: DriveIo> Drive<Io> {
         Ok(())
     }
 
+    /// Sets the quick stop option code 0x605A (spec 2.5): 0 coast, 1 slow-down ramp, 2
+    /// quick-stop ramp (0x6085), 3 current limit, 4 voltage limit, then "switch on
+    /// disabled"; 5-8 the same but staying in "quick stop active".
+    pub fn set_quick_stop_option(&mut self, code: i16) -> Result<(), DriveError> {
+        if !(0..=8).contains(&code) {
+            return Err(DriveError::InvalidArgument {
+                node: self.node(),
+                reason: format!(
+                    "quick stop option code {code} is not 0..=8 (negative codes are vendor specific)"
+                ),
+            });
+        }
+        self.io.write(index::QUICK_STOP_OPTION, 0, &code.to_le_bytes())?;
+        Ok(())
+    }
+
+    /// Sets the quick-stop deceleration 0x6085 (inc/s^2).
+    pub fn set_quick_stop_deceleration(&mut self, deceleration: u32) -> Result<(), DriveError> {
+        if deceleration == 0 {
+            return Err(DriveError::InvalidArgument {
+                node: self.node(),
+                reason: "quick-stop deceleration must be positive".into(),
+            });
+        }
+        self.io.write(index::QUICK_STOP_DECELERATION, 0, &deceleration.to_le_bytes())?;
+        Ok(())
+    }
+
+    /// Sets the following error window 0x6065 (inc) and time-out 0x6066 (ms): beyond the
+    /// window for longer than the time-out, the drive sets statusword bit 13.
+    pub fn set_following_error(&mut self, window: u32, timeout_ms: u16) -> Result<(), DriveError> {
+        self.io.write(index::FOLLOWING_ERROR_WINDOW, 0, &window.to_le_bytes())?;
+        self.io.write(index::FOLLOWING_ERROR_TIMEOUT, 0, &timeout_ms.to_le_bytes())?;
+        Ok(())
+    }
+
     /// Writes the software position limits 0x607D and checks targets against them.
     pub fn set_software_limits(&mut self, min: i32, max: i32) -> Result<(), DriveError> {
         if min > max {
