@@ -4,7 +4,6 @@ use super::codec::{Message, StreamParser};
 use crate::{CanBus, CanError, CanFrame, Received};
 use std::io::{Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpStream};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -16,8 +15,7 @@ pub struct SocketcandBus {
     addr: SocketAddr,
     channel: String,
     writer: Mutex<TcpStream>,
-    rx: Mutex<Receiver<Received>>,
-    reader: Option<std::thread::JoinHandle<()>>,
+    reading: Mutex<ReadState>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -72,39 +70,36 @@ impl SocketcandBus {
         expect(&mut stream, &mut parser, &Message::Ok)?;
         stream.write_all(Message::Rawmode.format().as_bytes())?;
         expect(&mut stream, &mut parser, &Message::Ok)?;
-        stream.set_read_timeout(None)?;
-        let (tx, rx) = mpsc::channel();
         let reading = stream.try_clone()?;
-        let name = format!("socketcand-client-{addr}");
-        let reader = std::thread::Builder::new().name(name).spawn(move || read_loop(reading, parser, &tx))?;
         Ok(SocketcandBus {
             addr,
             channel: channel.to_owned(),
             writer: Mutex::new(stream),
-            rx: Mutex::new(rx),
-            reader: Some(reader),
+            reading: Mutex::new(ReadState { stream: reading, parser, timeout: None, closed: false }),
         })
     }
 }
 
-fn read_loop(mut stream: TcpStream, mut parser: StreamParser, tx: &Sender<Received>) {
-    let mut buf = [0u8; 8192];
-    loop {
-        for msg in parser.by_ref() {
+/// The receiving side, read directly by [`CanBus::recv`] (no reader thread: one thread
+/// hand-off less per frame).
+struct ReadState {
+    stream: TcpStream,
+    parser: StreamParser,
+    /// The read time-out currently set on the socket (set again only when it changes).
+    timeout: Option<Duration>,
+    closed: bool,
+}
+
+impl ReadState {
+    fn next_frame(&mut self) -> Option<CanFrame> {
+        for msg in self.parser.by_ref() {
             match msg {
-                Message::Frame { frame, .. } => {
-                    if tx.send(Received { frame, at: Instant::now() }).is_err() {
-                        return;
-                    }
-                }
+                Message::Frame { frame, .. } => return Some(frame),
                 Message::Error(text) => tracing::warn!("socketcand: error reported by server: {text}"),
                 other => tracing::debug!("socketcand client: ignoring {other:?}"),
             }
         }
-        match stream.read(&mut buf) {
-            Ok(0) | Err(_) => return,
-            Ok(n) => parser.push(buf.get(..n).unwrap_or(&[])),
-        }
+        None
     }
 }
 
@@ -117,11 +112,38 @@ impl CanBus for SocketcandBus {
     }
 
     fn recv(&self, timeout: Duration) -> Result<Option<Received>, CanError> {
-        match lock(&self.rx).recv_timeout(timeout) {
-            Ok(r) => Ok(Some(r)),
-            Err(RecvTimeoutError::Timeout) => Ok(None),
-            Err(RecvTimeoutError::Disconnected) => {
-                Err(CanError::Closed(format!("{}: connection closed", self.describe())))
+        let mut r = lock(&self.reading);
+        let deadline = Instant::now() + timeout;
+        let mut buf = [0u8; 8192];
+        loop {
+            if let Some(frame) = r.next_frame() {
+                return Ok(Some(Received { frame, at: Instant::now() }));
+            }
+            if r.closed {
+                return Err(CanError::Closed(format!("{}: connection closed", self.describe())));
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Ok(None);
+            }
+            // Time-outs are rounded up to whole milliseconds, so the socket option changes
+            // rarely (a zero time-out is not allowed: it would mean "block forever").
+            let want = Some(Duration::from_millis(left.as_millis().max(1).try_into().unwrap_or(u64::MAX)));
+            if r.timeout != want {
+                r.stream.set_read_timeout(want)?;
+                r.timeout = want;
+            }
+            match r.stream.read(&mut buf) {
+                Ok(0) => r.closed = true,
+                Ok(n) => r.parser.push(buf.get(..n).unwrap_or(&[])),
+                Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
+                    return Ok(None)
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => {
+                    r.closed = true;
+                    return Err(CanError::Closed(format!("{}: {e}", self.describe())));
+                }
             }
         }
     }
@@ -134,8 +156,5 @@ impl CanBus for SocketcandBus {
 impl Drop for SocketcandBus {
     fn drop(&mut self) {
         let _ = lock(&self.writer).shutdown(Shutdown::Both);
-        if let Some(t) = self.reader.take() {
-            let _ = t.join();
-        }
     }
 }

@@ -1,0 +1,352 @@
+//! SDO expedited round trips per second on the virtual bus (the socketcand hub on
+//! 127.0.0.1, no bit-rate model), issue 5 point 5:
+//!
+//! * (a) Motus's master against Motus's simulated IclA drive (node 2);
+//! * (b) Motus's master against python-canopen's `LocalNode` (node 5, the simulator's EDS);
+//! * (c) python-canopen's master (`RemoteNode(2)`, `sdo.upload(0x6041, 0)` in a loop)
+//!   against Motus's simulated drive, run once by `tests/python/bench_sdo_master.py`.
+//!
+//! Criterion measures one upload of 0x6041:00 per iteration for (a) and (b). Besides,
+//! each pair runs a timed loop of the same length as the python master's, and the rates
+//! and the ratio (a)/(c) (target: at least 10) are printed as `RATE ...` lines.
+//! `BENCH_QUICK=1` shortens the timed loops from 3 s to 1.5 s.
+#![allow(missing_docs, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
+
+use std::io::{BufRead, BufReader, Read};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{channel, Receiver};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use criterion::{Criterion, Throughput};
+use motus_can::socketcand::{Hub, HubConfig, SocketcandBus, SETTLE};
+use motus_can::{CanBus, CanFrame};
+use motus_canopen::Master;
+use motus_icla_sim::{run_shared, SharedDrives, SimConfig, SimDrive};
+
+/// Node of the Motus simulated drive in (a) and (c).
+const SIM_NODE: u8 = 2;
+/// Node of python-canopen's LocalNode in (b).
+const LOCAL_NODE: u8 = 5;
+
+fn repo_root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn start_hub() -> Hub {
+    Hub::start(HubConfig { listen: "127.0.0.1:0".parse().unwrap(), bitrate: None, channel: "can0".into() })
+        .unwrap()
+}
+
+fn connect(hub: &Hub) -> Arc<dyn CanBus> {
+    Arc::new(SocketcandBus::connect(hub.local_addr(), "can0").unwrap())
+}
+
+/// Motus's simulated drive served on its own hub connection.
+struct Sim {
+    _drives: SharedDrives,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Sim {
+    fn start(hub: &Hub, node: u8) -> Sim {
+        Sim::start_many(hub, &[node])
+    }
+
+    fn start_many(hub: &Hub, nodes: &[u8]) -> Sim {
+        let bus = connect(hub);
+        let drives: SharedDrives =
+            Arc::new(Mutex::new(nodes.iter().map(|n| SimDrive::new(SimConfig::node(*n))).collect()));
+        let stop = Arc::new(AtomicBool::new(false));
+        let (d, s) = (Arc::clone(&drives), Arc::clone(&stop));
+        let thread = std::thread::spawn(move || run_shared(bus, d, s).unwrap());
+        Sim { _drives: drives, stop, thread: Some(thread) }
+    }
+}
+
+impl Drop for Sim {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// A python child whose stdout lines arrive on a channel.
+struct Python {
+    child: Child,
+    lines: Receiver<String>,
+    seen: Vec<String>,
+}
+
+impl Python {
+    fn spawn(args: &[String]) -> Python {
+        let mut child = Command::new("python3")
+            .args(args)
+            .current_dir(repo_root())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("python3 must be installed (with python-can 4.6.1 and canopen 2.4.1)");
+        let stdout = child.stdout.take().unwrap();
+        let (tx, lines) = channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines() {
+                let Ok(line) = line else { return };
+                if tx.send(line).is_err() {
+                    return;
+                }
+            }
+        });
+        Python { child, lines, seen: Vec::new() }
+    }
+
+    /// Waits for a stdout line containing `needle`.
+    fn wait_line(&mut self, needle: &str, timeout: Duration) -> Option<String> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let left = deadline.checked_duration_since(Instant::now())?;
+            let line = self.lines.recv_timeout(left).ok()?;
+            self.seen.push(line.clone());
+            if line.contains(needle) {
+                return Some(line);
+            }
+        }
+    }
+
+    /// Waits for the exit (killing the child after `timeout`); returns (exited cleanly,
+    /// stdout lines, stderr).
+    fn finish(mut self, timeout: Duration) -> (bool, Vec<String>, String) {
+        let deadline = Instant::now() + timeout;
+        let status = loop {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                break Some(s);
+            }
+            if Instant::now() > deadline {
+                let _ = self.child.kill();
+                let _ = self.child.wait();
+                break None;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        let mut stderr = String::new();
+        if let Some(mut e) = self.child.stderr.take() {
+            let _ = e.read_to_string(&mut stderr);
+        }
+        // The reader thread ends at EOF; collect what is left.
+        while let Ok(l) = self.lines.recv_timeout(Duration::from_millis(200)) {
+            self.seen.push(l);
+        }
+        (status.is_some_and(|s| s.success()), self.seen, stderr)
+    }
+}
+
+fn script_args(role: &str, hub: &Hub, node: u8, eds: &std::path::Path, seconds: f64) -> Vec<String> {
+    vec![
+        repo_root().join("tests/python/bench_sdo_master.py").display().to_string(),
+        "--role".into(),
+        role.into(),
+        "--port".into(),
+        hub.local_addr().port().to_string(),
+        "--node".into(),
+        node.to_string(),
+        "--eds".into(),
+        eds.display().to_string(),
+        "--seconds".into(),
+        format!("{seconds}"),
+    ]
+}
+
+/// Expedited uploads of 0x6041:00 for `seconds`: (uploads, errors, uploads per second).
+fn timed_rate(master: &Master, node: u8, seconds: f64) -> (u64, u64, f64) {
+    let (mut ok, mut errors) = (0u64, 0u64);
+    let start = Instant::now();
+    let until = start + Duration::from_secs_f64(seconds);
+    while Instant::now() < until {
+        match master.read_u16(node, 0x6041, 0) {
+            Ok(_) => ok += 1,
+            Err(_) => errors += 1,
+        }
+    }
+    let elapsed = start.elapsed().as_secs_f64();
+    (ok, errors, ok as f64 / elapsed)
+}
+
+fn bench_upload(c: &mut Criterion, name: &str, master: &Master, node: u8) {
+    let mut g = c.benchmark_group("sdo_expedited_upload_socketcand");
+    g.throughput(Throughput::Elements(1));
+    g.sample_size(30).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));
+    g.bench_function(name, |b| b.iter(|| master.read_u16(node, 0x6041, 0).unwrap()));
+    g.finish();
+}
+
+fn eds_file(node: u8) -> tempfile::NamedTempFile {
+    let eds = tempfile::Builder::new().suffix(".eds").tempfile().unwrap();
+    std::fs::write(eds.path(), SimDrive::new(SimConfig::node(node)).eds()).unwrap();
+    eds
+}
+
+/// The floor of any request/response on this bus: a raw frame from client A through the
+/// hub to an echo thread on client B and back (no CANopen at all).
+fn hub_floor(c: &mut Criterion, seconds: f64) -> f64 {
+    let hub = start_hub();
+    let a = connect(&hub);
+    let b = connect(&hub);
+    std::thread::sleep(SETTLE * 2);
+    let echo = std::thread::spawn(move || loop {
+        let Ok(Some(r)) = b.recv(Duration::from_secs(5)) else { return };
+        if r.frame.id() == 0x7FF {
+            return;
+        }
+        b.send(&CanFrame::new(r.frame.id() + 0x80, r.frame.data()).unwrap()).unwrap();
+    });
+    // 602#4041600000000000: the SDO upload request of 0x6041:00 to node 2 (CiA 301 §7.2.4.3.6).
+    let request: CanFrame = "602#4041600000000000".parse().unwrap();
+    let once = || {
+        a.send(&request).unwrap();
+        a.recv(Duration::from_secs(1)).unwrap().expect("echo")
+    };
+    let mut g = c.benchmark_group("sdo_expedited_upload_socketcand");
+    g.throughput(Throughput::Elements(1));
+    g.sample_size(30).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));
+    g.bench_function("floor_raw_frame_echo_via_hub", |bch| bch.iter(once));
+    g.finish();
+    let start = Instant::now();
+    let until = start + Duration::from_secs_f64(seconds);
+    let mut n = 0u64;
+    while Instant::now() < until {
+        once();
+        n += 1;
+    }
+    let rate = n as f64 / start.elapsed().as_secs_f64();
+    println!(
+        "RATE floor: raw frame echo via the hub (no CANopen): {rate:.0} round trips/s ({n} in {seconds} s)"
+    );
+    a.send(&CanFrame::new(0x7FF, &[]).unwrap()).unwrap();
+    let _ = echo.join();
+    rate
+}
+
+fn main() {
+    let mut c = Criterion::default().configure_from_args();
+    let seconds = if std::env::var_os("BENCH_QUICK").is_some() { 1.5 } else { 3.0 };
+    let floor = hub_floor(&mut c, seconds);
+
+    // (a) and (c): one hub with Motus's simulated drive at node 2.
+    let hub = start_hub();
+    let _sim = Sim::start(&hub, SIM_NODE);
+    let a_rate = {
+        let master = Master::new(connect(&hub));
+        std::thread::sleep(SETTLE * 2);
+        master.read_u16(SIM_NODE, 0x6041, 0).expect("the simulated drive answers");
+        bench_upload(&mut c, "a_motus_master_vs_motus_sim", &master, SIM_NODE);
+        let (n, err, rate) = timed_rate(&master, SIM_NODE, seconds);
+        println!(
+            "RATE (a) Motus master -> Motus sim drive (node {SIM_NODE}): {rate:.0} uploads/s \
+             ({n} in {seconds} s, {err} errors)"
+        );
+        rate
+        // The master leaves the hub here, so the python master has the bus to itself.
+    };
+
+    // (d) Motus's master with concurrent transfers to eight simulated drives (one SDO
+    // channel per node, as the master allows), on its own hub.
+    let d_rate = {
+        let hub_d = start_hub();
+        let nodes: Vec<u8> = (20..28).collect();
+        let _sims = Sim::start_many(&hub_d, &nodes);
+        let master = Arc::new(Master::new(connect(&hub_d)));
+        std::thread::sleep(SETTLE * 2);
+        for n in &nodes {
+            master.read_u16(*n, 0x6041, 0).expect("the simulated drives answer");
+        }
+        let start = Instant::now();
+        let threads: Vec<_> = nodes
+            .iter()
+            .map(|n| {
+                let (m, n) = (Arc::clone(&master), *n);
+                std::thread::spawn(move || timed_rate(&m, n, seconds))
+            })
+            .collect();
+        let (mut total, mut errors) = (0u64, 0u64);
+        for t in threads {
+            let (n, e, _) = t.join().unwrap();
+            total += n;
+            errors += e;
+        }
+        let rate = total as f64 / start.elapsed().as_secs_f64();
+        println!(
+            "RATE (d) Motus master, concurrent transfers to {} simulated drives: {rate:.0} uploads/s \
+             ({total} in {seconds} s, {errors} errors)",
+            nodes.len()
+        );
+        rate
+    };
+
+    // (c) python-canopen's master against the same simulated drive.
+    let eds_sim = eds_file(SIM_NODE);
+    let py = Python::spawn(&script_args("master", &hub, SIM_NODE, eds_sim.path(), seconds));
+    let (ok, lines, stderr) = py.finish(Duration::from_secs_f64(seconds + 30.0));
+    let c_json = lines
+        .iter()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .find(|v| v["role"] == "master");
+    let c_rate = c_json.as_ref().and_then(|v| v["rate_per_s"].as_f64());
+    match (ok, &c_json, c_rate) {
+        (true, Some(v), Some(rate)) => {
+            println!("RATE (c) python-canopen master -> Motus sim drive (node {SIM_NODE}): {rate:.0} uploads/s ({v})");
+            println!(
+                "RATIO (d)/(c) Motus master with concurrent transfers / python-canopen master: {:.1}x (target >= 10x: {})",
+                d_rate / rate,
+                if d_rate / rate >= 10.0 { "met" } else { "NOT met" }
+            );
+            println!(
+                "RATIO (a)/(c) Motus master / python-canopen master on the same bus: {:.1}x (target >= 10x: {})",
+                a_rate / rate,
+                if a_rate >= 10.0 * rate { "met" } else { "NOT met" }
+            );
+            println!(
+                "RATIO (c)/floor python-canopen master / raw hub echo: {:.2}; (a)/floor: {:.2} \
+                 (a ratio near 1 means the bus, not the master, sets the rate)",
+                rate / floor,
+                a_rate / floor
+            );
+        }
+        _ => println!(
+            "RATE (c) python-canopen master: FAILED (exit ok: {ok})\nstdout: {lines:?}\nstderr: {stderr}"
+        ),
+    }
+    drop(_sim);
+    drop(hub);
+
+    // (b) Motus's master against python-canopen's LocalNode, on a hub of their own.
+    let hub = start_hub();
+    let eds_local = eds_file(LOCAL_NODE);
+    // The LocalNode lives through criterion's run and the timed loop, then exits on its timer
+    // (or is ended earlier once it is no longer needed).
+    let mut py = Python::spawn(&script_args("localnode", &hub, LOCAL_NODE, eds_local.path(), seconds + 60.0));
+    let ready = py.wait_line("\"ready\"", Duration::from_secs(20));
+    let master = Master::new(connect(&hub));
+    std::thread::sleep(SETTLE * 2);
+    if ready.is_some() && master.read_u16(LOCAL_NODE, 0x6041, 0).is_ok() {
+        bench_upload(&mut c, "b_motus_master_vs_python_localnode", &master, LOCAL_NODE);
+        let (n, err, rate) = timed_rate(&master, LOCAL_NODE, seconds);
+        println!(
+            "RATE (b) Motus master -> python-canopen LocalNode (node {LOCAL_NODE}): {rate:.0} uploads/s \
+             ({n} in {seconds} s, {err} errors)"
+        );
+    } else {
+        println!("RATE (b) Motus master -> python-canopen LocalNode: FAILED (LocalNode not ready or silent)");
+    }
+    drop(master);
+    let (_, lines, stderr) = py.finish(Duration::ZERO);
+    if ready.is_none() {
+        println!("LocalNode stdout: {lines:?}\nstderr: {stderr}");
+    }
+    c.final_summary();
+}
