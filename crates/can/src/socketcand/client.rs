@@ -136,7 +136,9 @@ impl CanBus for SocketcandBus {
             match r.stream.read(&mut buf) {
                 Ok(0) => r.closed = true,
                 Ok(n) => r.parser.push(buf.get(..n).unwrap_or(&[])),
-                Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
+                Err(e)
+                    if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
+                {
                     return Ok(None)
                 }
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
