@@ -1,0 +1,121 @@
+#!/usr/bin/env python3
+"""SDO rate benchmark peer for crates/robot/benches/canopen_rates.rs (issue 5, point 5).
+
+Two roles, both on a Motus socketcand hub on 127.0.0.1:
+
+* ``--role master`` (default): python-canopen's master. ``net.add_node(RemoteNode(N, eds))``
+  and expedited uploads of 0x6041:00 (``node.sdo.upload``) in a loop for ``--seconds``;
+  prints one JSON line ``{"role": "master", "uploads": .., "errors": .., "seconds": ..,
+  "rate_per_s": ..}`` and exits 0 when at least one upload worked.
+* ``--role localnode``: python-canopen's LocalNode ``net.create_node(N, eds)`` serving SDO
+  requests of Motus's master for ``--seconds``; prints ``{"role": "localnode", ...}``.
+
+Either role ends on its own timer (a hard ``os._exit`` after ``--seconds`` + 10 s as well),
+because python-can busy-loops when the server goes away.
+"""
+import argparse
+import json
+import os
+import sys
+import threading
+import time
+
+import canopen  # a missing package must fail the benchmark, not skip it
+
+
+def hard_timer(seconds):
+    def fire():
+        print(json.dumps({"error": "hard timeout"}), flush=True)
+        os._exit(3)
+
+    t = threading.Timer(seconds, fire)
+    t.daemon = True
+    t.start()
+
+
+def connect(port, tcp_tune):
+    net = canopen.Network()
+    net.connect(interface="socketcand", host="127.0.0.1", port=port, channel="can0", tcp_tune=tcp_tune)
+    time.sleep(0.3)  # let the hub's handshake settle
+    return net
+
+
+def run_master(args):
+    net = connect(args.port, args.tcp_tune)
+    node = canopen.RemoteNode(args.node, args.eds)
+    net.add_node(node)
+    node.sdo.RESPONSE_TIMEOUT = 0.5
+    # Warm-up: first upload (and check the object answers at all).
+    node.sdo.upload(0x6041, 0)
+    uploads = 0
+    errors = 0
+    start = time.perf_counter()
+    deadline = start + args.seconds
+    while True:
+        now = time.perf_counter()
+        if now >= deadline:
+            break
+        try:
+            data = node.sdo.upload(0x6041, 0)
+            if len(data) != 2:
+                errors += 1
+            else:
+                uploads += 1
+        except canopen.SdoError:
+            errors += 1
+    elapsed = time.perf_counter() - start
+    net.disconnect()
+    print(
+        json.dumps(
+            {
+                "role": "master",
+                "node": args.node,
+                "uploads": uploads,
+                "errors": errors,
+                "seconds": round(elapsed, 4),
+                "rate_per_s": round(uploads / elapsed, 1),
+                "tcp_tune": args.tcp_tune,
+                "canopen": canopen.__version__,
+            }
+        ),
+        flush=True,
+    )
+    return 0 if uploads > 0 else 1
+
+
+def run_localnode(args):
+    net = connect(args.port, args.tcp_tune)
+    node = net.create_node(args.node, args.eds)
+    served = {"n": 0}
+
+    def on_read(index, subindex, od):
+        served["n"] += 1
+        return None  # the stored / default value is returned
+
+    node.add_read_callback(on_read)
+    node.nmt.send_command(0x82)  # reset communication -> boot-up 0x700+N [00]
+    node.nmt.send_command(0x80)  # pre-operational
+    print(json.dumps({"role": "localnode", "node": args.node, "ready": True}), flush=True)
+    time.sleep(args.seconds)
+    net.disconnect()
+    print(json.dumps({"role": "localnode", "node": args.node, "reads": served["n"]}), flush=True)
+    return 0
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--role", choices=["master", "localnode"], default="master")
+    ap.add_argument("--port", type=int, required=True)
+    ap.add_argument("--node", type=int, default=2)
+    ap.add_argument("--eds", required=True)
+    ap.add_argument("--seconds", type=float, default=3.0)
+    ap.add_argument("--no-tcp-tune", dest="tcp_tune", action="store_false")
+    args = ap.parse_args()
+    hard_timer(args.seconds + 10.0)
+    if args.role == "master":
+        return run_master(args)
+    return run_localnode(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
