@@ -66,6 +66,24 @@ pub enum Command {
     Canopen(crate::cli_can::CanopenArgs),
     /// The omnidirectional robot on three CANopen drives.
     Robot(crate::cli_can::RobotArgs),
+    /// The predictive collision supervisor.
+    #[command(subcommand)]
+    Safety(SafetyCommand),
+}
+
+/// `motus safety` commands.
+#[derive(Debug, Subcommand)]
+pub enum SafetyCommand {
+    /// Evaluate a recorded or generated trace offline: SafeToRun and the diagnosis for
+    /// every sample (deterministic).
+    Check {
+        /// Rules file (TOML), e.g. crates/safety/examples/juggler.toml.
+        #[arg(long)]
+        rules: PathBuf,
+        /// Trace (CSV: time, then position and speed per axis).
+        #[arg(long)]
+        trace: PathBuf,
+    },
 }
 
 /// Frame formats of `decode` / `encode`.
@@ -81,6 +99,8 @@ pub enum FrameFormat {
     Nfv2,
     /// CANopen frame in candump notation, e.g. `581#4B64600000000000` (`<id>#<hex>`).
     Canopen,
+    /// Ethernet POWERLINK frame: the whole Ethernet II frame as hex.
+    Epl,
 }
 
 /// CRC checking of received frames.

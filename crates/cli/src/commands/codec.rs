@@ -19,6 +19,10 @@ pub fn decode(
     let bytes = hex::parse(text)?;
     let json = match format {
         FrameFormat::Canopen => unreachable_canopen()?,
+        FrameFormat::Epl => serde_json::to_string(
+            &motus_epl_protocol::EplFrame::decode(&bytes)
+                .with_context(|| format!("invalid POWERLINK frame {}", hex::format(&bytes)))?,
+        )?,
         FrameFormat::Ps1aCmd => serde_json::to_string(
             &CommandFrame::decode(&bytes)
                 .with_context(|| format!("invalid PS1A command {}", hex::format(&bytes)))?,
@@ -66,6 +70,10 @@ pub fn encode(format: FrameFormat, json: &str, revision: &str) -> Result<()> {
     }
     let bytes = match format {
         FrameFormat::Canopen => unreachable_canopen()?,
+        FrameFormat::Epl => serde_json::from_str::<motus_epl_protocol::EplFrame>(json)
+            .context("invalid POWERLINK JSON (the form `motus decode epl` prints)")?
+            .encode()
+            .context("cannot encode the POWERLINK frame")?,
         FrameFormat::Ps1aCmd => serde_json::from_str::<CommandFrame>(json)
             .context(
                 "invalid PS1A command JSON (e.g. {\"addr\":3,\"command\":\"move_absolute\",\"target\":1000})",

@@ -9,6 +9,7 @@ mod kv01;
 mod nfv2;
 mod ps1a;
 mod robot;
+mod safety;
 mod sim;
 mod sim_can;
 
@@ -32,6 +33,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Canbus(c) => canbus::run(c),
         Command::Canopen(c) => canopen::run(c),
         Command::Robot(r) => robot::run(r),
+        Command::Safety(c) => safety::run(c),
     }
 }
 
