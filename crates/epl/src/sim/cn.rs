@@ -1,0 +1,242 @@
+//! A simulated Controlled Node that behaves like a servo drive (`specs/powerlink.md` §5, §6):
+//! NMT state machine driven by SoA/SoC and NMT commands, IdentResponse / StatusResponse on
+//! invitation, PRes on its PReq (RD only in OPERATIONAL), and an [`AxisModel`] stepped once per
+//! SoC with the RelativeTime difference as time step.
+
+use std::net::Ipv4Addr;
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use motus_epl_protocol::{
+    Asnd, EplFrame, FixedText, Flags, IdentResponse, MacAddr, Message, NmtCommandId, NmtState, PRes, PrRs,
+    RequestedService, StatusResponse, BROADCAST_NODE_ID, MN_NODE_ID,
+};
+
+use super::axis::{AxisModel, DriveParams};
+use super::pdo::{
+    Actual, SetPoint, CONTROL_ENABLE, CONTROL_QUICK_STOP, STATUS_ENABLED, STATUS_QUICK_STOP,
+    STATUS_STANDSTILL,
+};
+use crate::transport::{EthLink, MAX_FRAME};
+
+/// State a CN shares with the [`super::Segment`] handle.
+#[derive(Debug)]
+pub(crate) struct CnShared {
+    pub(crate) state: AtomicU8,
+}
+
+pub(crate) struct Cn {
+    node: u8,
+    link: Arc<dyn EthLink>,
+    mac: MacAddr,
+    state: NmtState,
+    axis: AxisModel,
+    setpoint: SetPoint,
+    last_relative_us: Option<u64>,
+    shared: Arc<CnShared>,
+    out: Vec<u8>,
+}
+
+impl Cn {
+    pub(crate) fn new(node: u8, link: Arc<dyn EthLink>, params: DriveParams, shared: Arc<CnShared>) -> Self {
+        let mac = link.mac();
+        let initial = params.initial_position.round() as i32;
+        Self {
+            node,
+            link,
+            mac,
+            state: NmtState::NotActive,
+            axis: AxisModel::new(params),
+            setpoint: SetPoint { control: 0, target: initial },
+            last_relative_us: None,
+            shared,
+            out: Vec::with_capacity(MAX_FRAME),
+        }
+    }
+
+    fn set_state(&mut self, s: NmtState) {
+        if s != self.state {
+            tracing::debug!(node = self.node, from = %self.state, to = %s, "CN state");
+        }
+        self.state = s;
+        self.shared.state.store(s.raw(), Ordering::Relaxed);
+    }
+
+    fn send(&mut self, dst_node: u8, message: Message) {
+        let frame = EplFrame::new(self.mac, MacAddr::BROADCAST, dst_node, self.node, message);
+        self.out.clear();
+        if let Err(e) = frame.encode_into(&mut self.out) {
+            tracing::warn!(node = self.node, "encode: {e}");
+            return;
+        }
+        if let Err(e) = self.link.send(&self.out) {
+            tracing::warn!(node = self.node, "send: {e}");
+        }
+    }
+
+    fn actual(&self) -> Actual {
+        let mut status = 0;
+        if self.setpoint.control & CONTROL_ENABLE != 0 {
+            status |= STATUS_ENABLED;
+        }
+        if self.setpoint.control & CONTROL_QUICK_STOP != 0 {
+            status |= STATUS_QUICK_STOP;
+        }
+        if self.axis.speed() == 0.0 {
+            status |= STATUS_STANDSTILL;
+        }
+        Actual {
+            status,
+            position: self.axis.position().round() as i32,
+            speed: self.axis.speed().round() as i32,
+        }
+    }
+
+    fn ident_response(&self) -> IdentResponse {
+        IdentResponse {
+            flags: Flags::empty(),
+            pr_rs: PrRs::default(),
+            nmt_state: self.state,
+            epl_version: 0x20,
+            // isochronous | SDO/ASnd | NMT info services
+            feature_flags: 0x0000_0015,
+            mtu: 300,
+            poll_in_size: super::pdo::PREQ_PAYLOAD_LEN as u16,
+            poll_out_size: super::pdo::PRES_PAYLOAD_LEN as u16,
+            response_time: 50_000,
+            // CiA 402 drive
+            device_type: 0x0002_0192,
+            vendor_id: 0x0000_0000,
+            product_code: 0x4d4f_5455,
+            revision_number: 1,
+            serial_number: u32::from(self.node),
+            vendor_ext1: [0; 8],
+            verify_conf_date: 0,
+            verify_conf_time: 0,
+            app_sw_date: 0,
+            app_sw_time: 0,
+            ip_address: Ipv4Addr::new(192, 168, 100, self.node),
+            subnet_mask: Ipv4Addr::new(255, 255, 255, 0),
+            default_gateway: Ipv4Addr::new(192, 168, 100, 254),
+            host_name: FixedText::Text(format!("motus-drive-{}", self.node)),
+            vendor_ext2: Vec::new(),
+            reserved1: 0,
+            reserved2: 0,
+            reserved3: 0,
+        }
+    }
+
+    fn status_response(&self) -> StatusResponse {
+        StatusResponse {
+            flags: Flags::empty(),
+            pr_rs: PrRs::default(),
+            nmt_state: self.state,
+            static_errors: [0; 8],
+            entries: Vec::new(),
+            reserved: [0; 3],
+        }
+    }
+
+    /// Handles one received frame.
+    pub(crate) fn handle(&mut self, frame: &EplFrame) {
+        match &frame.message {
+            Message::Soc(soc) => {
+                match self.state {
+                    NmtState::NotActive => self.set_state(NmtState::PreOperational1),
+                    NmtState::PreOperational1 => self.set_state(NmtState::PreOperational2),
+                    _ => {}
+                }
+                let dt = self
+                    .last_relative_us
+                    .map_or(0.0, |last| soc.relative_time.saturating_sub(last) as f64 * 1e-6);
+                self.last_relative_us = Some(soc.relative_time);
+                let enabled =
+                    self.setpoint.control & CONTROL_ENABLE != 0 && self.state == NmtState::Operational;
+                let quick_stop = self.setpoint.control & CONTROL_QUICK_STOP != 0;
+                let target = if enabled { f64::from(self.setpoint.target) } else { self.axis.position() };
+                self.axis.step(dt, target, quick_stop || !enabled && self.axis.speed() != 0.0);
+            }
+            Message::Soa(soa) => {
+                if self.state == NmtState::NotActive {
+                    self.set_state(NmtState::PreOperational1);
+                }
+                if soa.target == self.node {
+                    match soa.requested_service {
+                        RequestedService::IdentRequest => {
+                            let body = self.ident_response();
+                            self.send(BROADCAST_NODE_ID, Message::Asnd(Asnd::IdentResponse(body)));
+                        }
+                        RequestedService::StatusRequest => {
+                            let body = self.status_response();
+                            self.send(BROADCAST_NODE_ID, Message::Asnd(Asnd::StatusResponse(body)));
+                        }
+                        _ => {}
+                    }
+                }
+            }
+            Message::PReq(preq) if frame.dst_node == self.node && frame.ethernet.dst == self.mac => {
+                if let Some(sp) = SetPoint::decode(&preq.payload) {
+                    self.setpoint = sp;
+                }
+                let operational = self.state == NmtState::Operational;
+                let pres = PRes {
+                    nmt_state: self.state,
+                    flags: if operational { Flags::RD } else { Flags::empty() },
+                    pr_rs: PrRs::default(),
+                    pdo_version: 0,
+                    payload: self.actual().encode(),
+                    reserved: 0,
+                };
+                self.send(BROADCAST_NODE_ID, Message::PRes(pres));
+            }
+            Message::Asnd(Asnd::NmtCommand(cmd))
+                if frame.src_node == MN_NODE_ID
+                    && (frame.dst_node == self.node || frame.dst_node == BROADCAST_NODE_ID) =>
+            {
+                self.nmt_command(cmd.command);
+            }
+            _ => {}
+        }
+    }
+
+    fn nmt_command(&mut self, command: NmtCommandId) {
+        use NmtState as S;
+        let next = match (command, self.state) {
+            (
+                NmtCommandId::ResetNode | NmtCommandId::ResetCommunication | NmtCommandId::ResetConfiguration,
+                _,
+            ) => Some(S::NotActive),
+            (NmtCommandId::EnableReadyToOperate, S::PreOperational2) => Some(S::ReadyToOperate),
+            (NmtCommandId::StartNode, S::ReadyToOperate) => Some(S::Operational),
+            (NmtCommandId::StopNode, S::PreOperational2 | S::ReadyToOperate | S::Operational) => {
+                Some(S::Stopped)
+            }
+            (NmtCommandId::EnterPreOperational2, S::Operational | S::Stopped) => Some(S::PreOperational2),
+            _ => None,
+        };
+        if let Some(s) = next {
+            self.set_state(s);
+        }
+    }
+
+    /// Runs until `stop` is set.
+    pub(crate) fn run(mut self, stop: &AtomicBool) {
+        let mut buf = vec![0u8; MAX_FRAME];
+        self.set_state(NmtState::NotActive);
+        while !stop.load(Ordering::Relaxed) {
+            match self.link.recv(&mut buf, Duration::from_millis(20)) {
+                Ok(Some((n, _))) => {
+                    if let Ok(frame) = EplFrame::decode(buf.get(..n).unwrap_or(&[])) {
+                        self.handle(&frame);
+                    }
+                }
+                Ok(None) => {}
+                Err(e) => {
+                    tracing::warn!(node = self.node, "recv: {e}");
+                    std::thread::sleep(Duration::from_millis(5));
+                }
+            }
+        }
+    }
+}

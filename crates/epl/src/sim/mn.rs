@@ -1,0 +1,402 @@
+//! The simulated Managing Node (node 240): boot-up (`specs/powerlink.md` §6) and the cycle
+//! (§5) on a dedicated thread with absolute deadlines.
+//!
+//! * PRE_OPERATIONAL_1, reduced cycle: SoA only, one per cycle period. The first SoA is
+//!   followed by a broadcast NMTResetNode; the first [`MnConfig::preop1_start_cycles`] SoAs invite
+//!   nobody, then each invites one unidentified CN with an IdentRequest. The MN learns each CN's
+//!   MAC from the source of its IdentResponse. When every CN has answered: PRE_OPERATIONAL_2.
+//! * Full cycle: SoC; for each identified CN a PReq (unicast, set-point payload, RD only when
+//!   OPERATIONAL) and a wait for its PRes up to [`MnConfig::pres_timeout`] (a miss is counted);
+//!   SoA. The async slot carries, in order of priority: an NMT command of the MN (SoA
+//!   UnspecifiedInvite to 240, then the ASnd NMTCommand), a StatusRequest (during boot-up every
+//!   cycle, in OPERATIONAL every [`MnConfig::status_request_every`] cycles), or nothing.
+//! * Boot-up continues from the CN states seen in PRes: all CNs PRE_OPERATIONAL_2 ->
+//!   NMTEnableReadyToOperate to each; all READY_TO_OPERATE -> MN READY_TO_OPERATE and
+//!   NMTStartNode to each; all OPERATIONAL -> MN OPERATIONAL, the motion program starts.
+//!   Commands are repeated every 20 cycles until the CN's state follows.
+//! * Timing: sleep until [`MnConfig::busy_wait`] before the deadline (receiving stray frames
+//!   meanwhile), then spin; the lateness of each SoC after its deadline is recorded. Thread
+//!   timer slack is set to 1 ns. A cycle whose work overruns the next deadline skips it.
+
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use motus_epl_protocol::{
+    Asnd, EplFrame, Flags, MacAddr, Message, NetTime, NmtCommand, NmtCommandId, NmtState, PReq,
+    RequestedService, Soa, Soc, BROADCAST_NODE_ID, MN_NODE_ID,
+};
+
+use super::pdo::{SetPoint, CONTROL_ENABLE, CONTROL_QUICK_STOP};
+use super::program::MotionProgram;
+use super::stats::MnStats;
+use crate::transport::{EthLink, MAX_FRAME};
+
+/// Timing of the Managing Node.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MnConfig {
+    /// Cycle period (also the period of the reduced PreOp1 cycle).
+    pub cycle: Duration,
+    /// How long to wait for each PRes after its PReq.
+    pub pres_timeout: Duration,
+    /// How long to wait for an ASnd after a SoA invitation (capped by the next deadline).
+    pub async_timeout: Duration,
+    /// Spin (instead of sleeping) for this long before each deadline.
+    pub busy_wait: Duration,
+    /// SoAs without invitation at the start of PreOp1 (openPOWERLINK: 10).
+    pub preop1_start_cycles: u32,
+    /// In OPERATIONAL, one StatusRequest every this many cycles (0: never).
+    pub status_request_every: u32,
+}
+
+impl Default for MnConfig {
+    fn default() -> Self {
+        Self {
+            cycle: Duration::from_millis(1),
+            pres_timeout: Duration::from_micros(300),
+            async_timeout: Duration::from_micros(300),
+            busy_wait: Duration::from_micros(50),
+            preop1_start_cycles: 10,
+            status_request_every: 1000,
+        }
+    }
+}
+
+/// State the MN shares with the [`super::Segment`] handle.
+#[derive(Debug, Default)]
+pub(crate) struct MnShared {
+    pub(crate) state: AtomicU8,
+    pub(crate) quick_stop: AtomicBool,
+    pub(crate) stats: Mutex<MnStats>,
+}
+
+#[derive(Debug)]
+struct CnSlot {
+    node: u8,
+    mac: Option<MacAddr>,
+    state: NmtState,
+    last_command_cycle: Option<u64>,
+}
+
+pub(crate) struct Mn {
+    link: Arc<dyn EthLink>,
+    mac: MacAddr,
+    config: MnConfig,
+    cns: Vec<CnSlot>,
+    state: NmtState,
+    program: Option<Box<dyn MotionProgram>>,
+    shared: Arc<MnShared>,
+    commands: VecDeque<(u8, NmtCommandId)>,
+    cycle_index: u64,
+    reduced_index: u64,
+    status_rr: usize,
+    op_start: Option<Instant>,
+    targets: Vec<i32>,
+    out: Vec<u8>,
+    buf: Vec<u8>,
+}
+
+impl Mn {
+    pub(crate) fn new(
+        link: Arc<dyn EthLink>,
+        config: MnConfig,
+        nodes: &[(u8, i32)],
+        program: Option<Box<dyn MotionProgram>>,
+        shared: Arc<MnShared>,
+    ) -> Self {
+        Self {
+            mac: link.mac(),
+            link,
+            config,
+            cns: nodes
+                .iter()
+                .map(|&(node, _)| CnSlot {
+                    node,
+                    mac: None,
+                    state: NmtState::NotActive,
+                    last_command_cycle: None,
+                })
+                .collect(),
+            state: NmtState::PreOperational1,
+            program,
+            shared,
+            commands: VecDeque::new(),
+            cycle_index: 0,
+            reduced_index: 0,
+            status_rr: 0,
+            op_start: None,
+            targets: nodes.iter().map(|&(_, p)| p).collect(),
+            out: Vec::with_capacity(MAX_FRAME),
+            buf: vec![0; MAX_FRAME],
+        }
+    }
+
+    fn stats(&self) -> std::sync::MutexGuard<'_, MnStats> {
+        self.shared.stats.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn set_state(&mut self, s: NmtState) {
+        tracing::debug!(from = %self.state, to = %s, "MN state");
+        self.state = s;
+        self.shared.state.store(s.raw(), Ordering::Relaxed);
+    }
+
+    fn send(&mut self, dst_mac: MacAddr, dst_node: u8, message: Message) {
+        let frame = EplFrame::new(self.mac, dst_mac, dst_node, MN_NODE_ID, message);
+        self.out.clear();
+        let ok = frame.encode_into(&mut self.out).is_ok() && self.link.send(&self.out).is_ok();
+        if !ok {
+            self.stats().send_errors += 1;
+        }
+    }
+
+    /// Receives one frame until `deadline`; returns it decoded, handling ASnd bookkeeping.
+    fn recv_until(&mut self, deadline: Instant) -> Option<(EplFrame, Instant)> {
+        let now = Instant::now();
+        if now >= deadline {
+            return None;
+        }
+        let (n, at) = self.link.recv(&mut self.buf, deadline - now).ok()??;
+        match EplFrame::decode(self.buf.get(..n).unwrap_or(&[])) {
+            Ok(frame) => {
+                self.observe(&frame);
+                Some((frame, at))
+            }
+            Err(_) => {
+                self.stats().decode_errors += 1;
+                None
+            }
+        }
+    }
+
+    /// Learns MACs and states from IdentResponse, StatusResponse and PRes.
+    fn observe(&mut self, frame: &EplFrame) {
+        let (state, learn_mac) = match &frame.message {
+            Message::Asnd(Asnd::IdentResponse(r)) => (r.nmt_state, true),
+            Message::Asnd(Asnd::StatusResponse(r)) => (r.nmt_state, false),
+            Message::PRes(p) => (p.nmt_state, false),
+            _ => return,
+        };
+        if let Some(cn) = self.cns.iter_mut().find(|c| c.node == frame.src_node) {
+            cn.state = state;
+            if learn_mac {
+                cn.mac = Some(frame.ethernet.src);
+            }
+        }
+    }
+
+    fn sleep_until(&mut self, deadline: Instant) {
+        let wake = deadline.checked_sub(self.config.busy_wait).unwrap_or(deadline);
+        while Instant::now() < wake {
+            // Stray or late frames are observed and dropped.
+            let _ = self.recv_until(wake);
+        }
+        while Instant::now() < deadline {
+            std::hint::spin_loop();
+        }
+    }
+
+    /// Runs until `stop` is set.
+    pub(crate) fn run(mut self, stop: &AtomicBool) {
+        if let Err(e) = nix::sys::prctl::set_timerslack(1) {
+            tracing::debug!("timer slack: {e}");
+        }
+        self.shared.state.store(self.state.raw(), Ordering::Relaxed);
+        let epoch = Instant::now() + self.config.cycle;
+        let mut deadline = epoch;
+        let mut first_soc: Option<Instant> = None;
+        while !stop.load(Ordering::Relaxed) {
+            self.sleep_until(deadline);
+            let late = Instant::now().saturating_duration_since(deadline);
+            if self.state == NmtState::PreOperational1 {
+                self.reduced_cycle(deadline + self.config.cycle);
+            } else {
+                let start = *first_soc.get_or_insert(deadline);
+                {
+                    let mut st = self.stats();
+                    st.start_late_ns.push(u64::try_from(late.as_nanos()).unwrap_or(u64::MAX));
+                    st.cycles += 1;
+                    if self.state == NmtState::Operational {
+                        st.operational_cycles += 1;
+                    }
+                }
+                self.full_cycle(
+                    deadline,
+                    deadline.saturating_duration_since(start),
+                    deadline + self.config.cycle,
+                );
+            }
+            deadline += self.config.cycle;
+            let now = Instant::now();
+            if now >= deadline {
+                self.stats().overruns += 1;
+                while deadline <= now {
+                    deadline += self.config.cycle;
+                }
+            }
+        }
+    }
+
+    fn reduced_cycle(&mut self, next_deadline: Instant) {
+        self.stats().reduced_cycles += 1;
+        let i = self.reduced_index;
+        self.reduced_index += 1;
+        let invite = if i < u64::from(self.config.preop1_start_cycles) {
+            None
+        } else {
+            let unidentified: Vec<u8> = self.cns.iter().filter(|c| c.mac.is_none()).map(|c| c.node).collect();
+            if unidentified.is_empty() {
+                self.set_state(NmtState::PreOperational2);
+                return;
+            }
+            let k = usize::try_from(i).unwrap_or(0) % unidentified.len();
+            unidentified.get(k).copied()
+        };
+        let soa = match invite {
+            Some(node) => Soa::new(self.state, RequestedService::IdentRequest, node),
+            None if i == 0 => Soa::new(self.state, RequestedService::UnspecifiedInvite, MN_NODE_ID),
+            None => Soa::new(self.state, RequestedService::NoService, 0),
+        };
+        self.send(MacAddr::SOA, BROADCAST_NODE_ID, Message::Soa(soa));
+        if i == 0 {
+            // Reset every CN at the start of PreOp1 (specs/powerlink.md §6 timeline).
+            let cmd = NmtCommand { command: NmtCommandId::ResetNode, data: Vec::new(), reserved: 0 };
+            self.send(MacAddr::ASND, BROADCAST_NODE_ID, Message::Asnd(Asnd::NmtCommand(cmd)));
+        }
+        if let Some(node) = invite {
+            self.wait_asnd(node, next_deadline);
+        }
+    }
+
+    fn wait_asnd(&mut self, node: u8, next_deadline: Instant) {
+        let cap = next_deadline.checked_sub(self.config.busy_wait).unwrap_or(next_deadline);
+        let until = (Instant::now() + self.config.async_timeout).min(cap);
+        while Instant::now() < until {
+            if let Some((f, _)) = self.recv_until(until) {
+                if matches!(f.message, Message::Asnd(_)) && f.src_node == node {
+                    return;
+                }
+            }
+        }
+    }
+
+    fn full_cycle(&mut self, deadline: Instant, since_first_soc: Duration, next_deadline: Instant) {
+        let wall = SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default();
+        let soc = Soc {
+            flags: Flags::empty(),
+            net_time: NetTime { seconds: wall.as_secs() as u32, nanoseconds: wall.subsec_nanos() },
+            relative_time: u64::try_from(since_first_soc.as_micros()).unwrap_or(u64::MAX),
+            reserved1: 0,
+            reserved2: 0,
+        };
+        self.send(MacAddr::SOC, BROADCAST_NODE_ID, Message::Soc(soc));
+        let operational = self.state == NmtState::Operational;
+        if operational {
+            let t = self.op_start.map_or(Duration::ZERO, |s| deadline.saturating_duration_since(s));
+            if let Some(p) = self.program.as_mut() {
+                p.setpoints(t, &mut self.targets);
+            }
+        }
+        let quick_stop = self.shared.quick_stop.load(Ordering::Relaxed);
+        for i in 0..self.cns.len() {
+            let Some(cn) = self.cns.get(i) else { continue };
+            let (node, Some(mac)) = (cn.node, cn.mac) else { continue };
+            let mut control = if operational { CONTROL_ENABLE } else { 0 };
+            if quick_stop {
+                control |= CONTROL_QUICK_STOP;
+            }
+            let sp = SetPoint { control, target: self.targets.get(i).copied().unwrap_or(0) };
+            let preq = PReq {
+                flags: if operational { Flags::RD } else { Flags::empty() },
+                payload: sp.encode().to_vec(),
+                ..PReq::default()
+            };
+            let sent = Instant::now();
+            self.send(mac, node, Message::PReq(preq));
+            self.wait_pres(node, sent, operational);
+        }
+        self.async_phase(next_deadline);
+        self.boot_step(deadline);
+        self.cycle_index += 1;
+    }
+
+    fn wait_pres(&mut self, node: u8, sent: Instant, operational: bool) {
+        let until = sent + self.config.pres_timeout;
+        loop {
+            match self.recv_until(until) {
+                Some((f, at)) => {
+                    if let Message::PRes(_) = f.message {
+                        if f.src_node == node {
+                            if operational {
+                                let rtt = at.saturating_duration_since(sent).as_nanos();
+                                self.stats().pres_rtt_ns.push(u64::try_from(rtt).unwrap_or(u64::MAX));
+                            }
+                            return;
+                        }
+                        self.stats().pres_late += 1;
+                    }
+                }
+                None if Instant::now() >= until => break,
+                None => {}
+            }
+        }
+        if operational {
+            *self.stats().pres_missed.entry(node).or_default() += 1;
+        }
+    }
+
+    fn async_phase(&mut self, next_deadline: Instant) {
+        if let Some((node, command)) = self.commands.pop_front() {
+            let soa = Soa::new(self.state, RequestedService::UnspecifiedInvite, MN_NODE_ID);
+            self.send(MacAddr::SOA, BROADCAST_NODE_ID, Message::Soa(soa));
+            let cmd = NmtCommand { command, data: Vec::new(), reserved: 0 };
+            self.send(MacAddr::ASND, node, Message::Asnd(Asnd::NmtCommand(cmd)));
+            return;
+        }
+        let every = u64::from(self.config.status_request_every);
+        let booting = self.state != NmtState::Operational;
+        let ask = !self.cns.is_empty() && (booting || (every > 0 && self.cycle_index % every == 0));
+        if ask {
+            self.status_rr = (self.status_rr + 1) % self.cns.len();
+            if let Some(node) = self.cns.get(self.status_rr).map(|c| c.node) {
+                let soa = Soa::new(self.state, RequestedService::StatusRequest, node);
+                self.send(MacAddr::SOA, BROADCAST_NODE_ID, Message::Soa(soa));
+                self.wait_asnd(node, next_deadline);
+                return;
+            }
+        }
+        let soa = Soa::new(self.state, RequestedService::NoService, 0);
+        self.send(MacAddr::SOA, BROADCAST_NODE_ID, Message::Soa(soa));
+    }
+
+    fn boot_step(&mut self, deadline: Instant) {
+        let all = |cns: &[CnSlot], s: NmtState| cns.iter().all(|c| c.state == s);
+        let (from, command) = match self.state {
+            NmtState::PreOperational2 => {
+                if all(&self.cns, NmtState::ReadyToOperate) {
+                    self.set_state(NmtState::ReadyToOperate);
+                    return;
+                }
+                (NmtState::PreOperational2, NmtCommandId::EnableReadyToOperate)
+            }
+            NmtState::ReadyToOperate => {
+                if all(&self.cns, NmtState::Operational) {
+                    self.set_state(NmtState::Operational);
+                    self.op_start = Some(deadline + self.config.cycle);
+                    return;
+                }
+                (NmtState::ReadyToOperate, NmtCommandId::StartNode)
+            }
+            _ => return,
+        };
+        let cycle = self.cycle_index;
+        for cn in &mut self.cns {
+            let due = cn.last_command_cycle.map_or(true, |c| cycle >= c + 20);
+            if cn.state == from && due {
+                cn.last_command_cycle = Some(cycle);
+                self.commands.push_back((cn.node, command));
+            }
+        }
+    }
+}

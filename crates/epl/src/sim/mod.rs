@@ -1,0 +1,232 @@
+//! A simulated POWERLINK segment: one Managing Node ([`MnConfig`]) and Controlled Nodes that
+//! behave like servo drives ([`DriveParams`]), each on its own [`EthLink`] and thread.
+//!
+//! ```no_run
+//! use std::sync::Arc;
+//! use std::time::Duration;
+//! use motus_epl::sim::{CamAxis, CamProgram, DriveParams, Segment};
+//! use motus_epl::UdpHub;
+//!
+//! let hub = UdpHub::new();
+//! let mut builder = Segment::builder().cycle(Duration::from_millis(1));
+//! builder = builder.mn_link(Arc::new(hub.connect()?));
+//! for node in 1..=5 {
+//!     builder = builder.drive(node, Arc::new(hub.connect()?), DriveParams::default());
+//! }
+//! let axes = vec![CamAxis { center: 0.0, amplitude: 500.0, period: 1.0, phase: 0.0 }; 5];
+//! let segment = builder.program(Box::new(CamProgram::new(axes))).start()?;
+//! assert!(segment.wait_operational(Duration::from_secs(5)));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+pub mod axis;
+mod cn;
+mod mn;
+pub mod pdo;
+pub mod program;
+pub mod stats;
+
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+use std::sync::{Arc, PoisonError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use motus_epl_protocol::{NmtState, BROADCAST_NODE_ID, MN_NODE_ID};
+use thiserror::Error;
+
+pub use axis::{AxisModel, DriveParams};
+pub use mn::MnConfig;
+pub use pdo::{Actual, SetPoint};
+pub use program::{CamAxis, CamProgram, MotionProgram, SetpointList};
+pub use stats::{MnStats, Percentiles};
+
+use crate::transport::EthLink;
+
+/// Why a segment could not start.
+#[derive(Debug, Error)]
+pub enum SegmentError {
+    /// No link was given for the Managing Node.
+    #[error("segment: no link for the managing node")]
+    NoMnLink,
+    /// A CN node ID outside 1..=239.
+    #[error("segment: node ID {0} is not a controlled node (1..=239)")]
+    InvalidNode(u8),
+    /// A node ID given twice.
+    #[error("segment: node {0} added twice")]
+    DuplicateNode(u8),
+    /// A zero cycle time or PRes time-out.
+    #[error("segment: {0} must not be zero")]
+    ZeroTime(&'static str),
+    /// A thread could not be spawned.
+    #[error("segment: spawning a thread: {0}")]
+    Spawn(#[from] std::io::Error),
+}
+
+/// Builds a [`Segment`].
+#[derive(Default)]
+pub struct SegmentBuilder {
+    mn: Option<Arc<dyn EthLink>>,
+    drives: Vec<(u8, Arc<dyn EthLink>, DriveParams)>,
+    config: MnConfig,
+    program: Option<Box<dyn MotionProgram>>,
+}
+
+impl SegmentBuilder {
+    /// The Managing Node's link.
+    pub fn mn_link(mut self, link: Arc<dyn EthLink>) -> Self {
+        self.mn = Some(link);
+        self
+    }
+
+    /// Adds a drive CN with node ID `node` on `link`.
+    pub fn drive(mut self, node: u8, link: Arc<dyn EthLink>, params: DriveParams) -> Self {
+        self.drives.push((node, link, params));
+        self
+    }
+
+    /// The whole MN timing configuration.
+    pub fn config(mut self, config: MnConfig) -> Self {
+        self.config = config;
+        self
+    }
+
+    /// The cycle period.
+    pub fn cycle(mut self, cycle: Duration) -> Self {
+        self.config.cycle = cycle;
+        self
+    }
+
+    /// The PRes time-out.
+    pub fn pres_timeout(mut self, timeout: Duration) -> Self {
+        self.config.pres_timeout = timeout;
+        self
+    }
+
+    /// The motion program run once OPERATIONAL (without one, drives hold their start position).
+    pub fn program(mut self, program: Box<dyn MotionProgram>) -> Self {
+        self.program = Some(program);
+        self
+    }
+
+    /// Starts the CN threads and the MN thread.
+    pub fn start(self) -> Result<Segment, SegmentError> {
+        let mn_link = self.mn.ok_or(SegmentError::NoMnLink)?;
+        if self.config.cycle.is_zero() {
+            return Err(SegmentError::ZeroTime("cycle"));
+        }
+        if self.config.pres_timeout.is_zero() {
+            return Err(SegmentError::ZeroTime("PRes time-out"));
+        }
+        let mut seen = Vec::new();
+        for (node, _, _) in &self.drives {
+            if *node == 0 || *node >= MN_NODE_ID || *node == BROADCAST_NODE_ID {
+                return Err(SegmentError::InvalidNode(*node));
+            }
+            if seen.contains(node) {
+                return Err(SegmentError::DuplicateNode(*node));
+            }
+            seen.push(*node);
+        }
+        let stop = Arc::new(AtomicBool::new(false));
+        let mut threads = Vec::new();
+        let mut cns = Vec::new();
+        let mut nodes = Vec::new();
+        for (node, link, params) in self.drives {
+            let shared = Arc::new(cn::CnShared { state: AtomicU8::new(NmtState::NotActive.raw()) });
+            let cn = cn::Cn::new(node, link, params, Arc::clone(&shared));
+            let stop = Arc::clone(&stop);
+            let t = std::thread::Builder::new().name(format!("epl-cn{node}")).spawn(move || cn.run(&stop))?;
+            threads.push(t);
+            cns.push((node, shared));
+            nodes.push((node, params.initial_position.round() as i32));
+        }
+        let mn_shared = Arc::new(mn::MnShared::default());
+        let mn = mn::Mn::new(mn_link, self.config, &nodes, self.program, Arc::clone(&mn_shared));
+        let stop_mn = Arc::clone(&stop);
+        let started = std::thread::Builder::new().name("epl-mn".into()).spawn(move || mn.run(&stop_mn));
+        match started {
+            Ok(t) => threads.push(t),
+            Err(e) => {
+                stop.store(true, Ordering::Relaxed);
+                return Err(e.into());
+            }
+        }
+        Ok(Segment { stop, threads, mn: mn_shared, cns })
+    }
+}
+
+/// A running simulated segment; stops (and joins its threads) on [`Segment::stop`] or drop.
+pub struct Segment {
+    stop: Arc<AtomicBool>,
+    threads: Vec<JoinHandle<()>>,
+    mn: Arc<mn::MnShared>,
+    cns: Vec<(u8, Arc<cn::CnShared>)>,
+}
+
+impl Segment {
+    /// A builder with the default [`MnConfig`].
+    pub fn builder() -> SegmentBuilder {
+        SegmentBuilder::default()
+    }
+
+    /// The MN's NMT state.
+    pub fn mn_state(&self) -> NmtState {
+        NmtState::from_raw(self.mn.state.load(Ordering::Relaxed))
+    }
+
+    /// The NMT state of CN `node` as the CN itself holds it.
+    pub fn cn_state(&self, node: u8) -> Option<NmtState> {
+        self.cns
+            .iter()
+            .find(|(n, _)| *n == node)
+            .map(|(_, s)| NmtState::from_raw(s.state.load(Ordering::Relaxed)))
+    }
+
+    /// Waits until the MN is OPERATIONAL; false on time-out.
+    pub fn wait_operational(&self, timeout: Duration) -> bool {
+        let end = Instant::now() + timeout;
+        while Instant::now() < end {
+            if self.mn_state() == NmtState::Operational {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        self.mn_state() == NmtState::Operational
+    }
+
+    /// Sets or clears the quick-stop bit the MN sends to every drive.
+    pub fn quick_stop(&self, on: bool) {
+        self.mn.quick_stop.store(on, Ordering::Relaxed);
+    }
+
+    /// A copy of the MN statistics.
+    pub fn stats(&self) -> MnStats {
+        self.mn.stats.lock().unwrap_or_else(PoisonError::into_inner).clone()
+    }
+
+    /// Clears the MN statistics (e.g. after boot-up).
+    pub fn reset_stats(&self) {
+        *self.mn.stats.lock().unwrap_or_else(PoisonError::into_inner) = MnStats::default();
+    }
+
+    /// Stops every thread and returns the final statistics.
+    pub fn stop(mut self) -> MnStats {
+        self.shutdown();
+        self.stats()
+    }
+
+    fn shutdown(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for t in self.threads.drain(..) {
+            if t.join().is_err() {
+                tracing::warn!("a segment thread panicked");
+            }
+        }
+    }
+}
+
+impl Drop for Segment {
+    fn drop(&mut self) {
+        self.shutdown();
+    }
+}

@@ -1,0 +1,101 @@
+//! Ethernet links that carry POWERLINK frames: the [`EthLink`] trait and its implementations.
+//!
+//! A link is one port on a shared medium (a hub): [`EthLink::send`] puts a whole Ethernet frame
+//! (without FCS) on the medium, [`EthLink::recv`] returns the next frame sent by *another* port.
+//! A link never returns its own frames (like an AF_PACKET socket bound to EtherType 0x88AB,
+//! `specs/powerlink.md` §8), and does no MAC filtering: every port sees every frame, unicast
+//! PReq included, as on a hub or a bridge with ageing time 0.
+
+mod faulty;
+mod pcap;
+pub mod raw;
+mod udp;
+
+use std::io;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use motus_epl_protocol::MacAddr;
+
+pub use faulty::{FaultConfig, FaultCounters, FaultyLink};
+pub use pcap::PcapLink;
+pub use raw::RawSocket;
+pub use udp::{UdpHub, UdpLink};
+
+/// Largest frame a link passes (1514 bytes without FCS, plus room for a VLAN tag).
+pub const MAX_FRAME: usize = 1518;
+
+/// One port on an Ethernet medium carrying POWERLINK frames.
+pub trait EthLink: Send + Sync {
+    /// Sends one Ethernet frame (destination MAC first, no FCS).
+    fn send(&self, frame: &[u8]) -> io::Result<()>;
+    /// Waits up to `timeout` for a frame from another port; copies it into `buf` and returns
+    /// its length and the time it was received, or `None` on time-out. A frame longer than
+    /// `buf` is truncated to `buf.len()`.
+    fn recv(&self, buf: &mut [u8], timeout: Duration) -> io::Result<Option<(usize, Instant)>>;
+    /// This port's MAC address (the source MAC of the frames a node sends on it).
+    fn mac(&self) -> MacAddr;
+    /// A human-readable description ("udp 127.0.0.1:40001", "raw eth0").
+    fn describe(&self) -> String;
+}
+
+impl<T: EthLink + ?Sized> EthLink for Arc<T> {
+    fn send(&self, frame: &[u8]) -> io::Result<()> {
+        (**self).send(frame)
+    }
+    fn recv(&self, buf: &mut [u8], timeout: Duration) -> io::Result<Option<(usize, Instant)>> {
+        (**self).recv(buf, timeout)
+    }
+    fn mac(&self) -> MacAddr {
+        (**self).mac()
+    }
+    fn describe(&self) -> String {
+        (**self).describe()
+    }
+}
+
+impl<T: EthLink + ?Sized> EthLink for Box<T> {
+    fn send(&self, frame: &[u8]) -> io::Result<()> {
+        (**self).send(frame)
+    }
+    fn recv(&self, buf: &mut [u8], timeout: Duration) -> io::Result<Option<(usize, Instant)>> {
+        (**self).recv(buf, timeout)
+    }
+    fn mac(&self) -> MacAddr {
+        (**self).mac()
+    }
+    fn describe(&self) -> String {
+        (**self).describe()
+    }
+}
+
+/// Receives from a non-blocking socket with a precise time-out: `try_recv` is attempted, and
+/// on `WouldBlock` the thread waits in `ppoll` (nanosecond time-out on an hrtimer; a socket's
+/// `SO_RCVTIMEO` is rounded up to whole jiffies, several milliseconds, which is useless for a
+/// sub-millisecond cycle).
+pub(crate) fn recv_with_timeout(
+    fd: std::os::fd::BorrowedFd<'_>,
+    timeout: Duration,
+    mut try_recv: impl FnMut() -> io::Result<usize>,
+) -> io::Result<Option<(usize, Instant)>> {
+    use nix::poll::{ppoll, PollFd, PollFlags};
+    use nix::sys::time::TimeSpec;
+    let deadline = Instant::now() + timeout;
+    loop {
+        match try_recv() {
+            Ok(n) => return Ok(Some((n, Instant::now()))),
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock => {}
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        }
+        let now = Instant::now();
+        if now >= deadline {
+            return Ok(None);
+        }
+        let mut fds = [PollFd::new(fd, PollFlags::POLLIN)];
+        match ppoll(&mut fds, Some(TimeSpec::from_duration(deadline - now)), None) {
+            Ok(_) | Err(nix::errno::Errno::EINTR) => {}
+            Err(e) => return Err(e.into()),
+        }
+    }
+}

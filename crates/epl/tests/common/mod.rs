@@ -1,0 +1,246 @@
+//! Shared scenario for the UDP and veth tests: an MN and five drive CNs, a monitor on its own
+//! link reading positions and speeds every cycle, then a quick stop.
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, dead_code)]
+
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use motus_epl::sim::{CamAxis, CamProgram, DriveParams, MnConfig, MnStats, Segment};
+use motus_epl::{CycleSample, EthLink, Monitor, MonitorConfig};
+use motus_epl_protocol::{NmtState, Value, ValueMap};
+
+pub const NODES: [u8; 5] = [1, 2, 3, 4, 5];
+
+/// The acopos map (position at PRes payload offset 16, speed at 20) for nodes 1..=5.
+pub fn map() -> ValueMap {
+    let mut text = String::new();
+    for n in NODES {
+        text.push_str(&format!(
+            "[[node]]\nnode = {n}\nvalues = [{{ name = \"status\", offset = 0, type = \"u16\" }}, {{ name = \"position\", offset = 16, type = \"i32\" }}, {{ name = \"speed\", offset = 20, type = \"i32\" }}]\n"
+        ));
+    }
+    ValueMap::from_toml(&text).unwrap()
+}
+
+/// Largest tolerated fraction of missed cycles: `default`, or MOTUS_EPL_MAX_MISS.
+pub fn max_miss(default: f64) -> f64 {
+    std::env::var("MOTUS_EPL_MAX_MISS").ok().and_then(|s| s.parse().ok()).unwrap_or(default)
+}
+
+pub fn seconds() -> f64 {
+    std::env::var("MOTUS_EPL_SECONDS").ok().and_then(|s| s.parse().ok()).unwrap_or(5.0)
+}
+
+pub fn cam() -> Vec<CamAxis> {
+    NODES
+        .iter()
+        .map(|&n| CamAxis {
+            center: 1000.0 * f64::from(n),
+            amplitude: 2000.0,
+            period: 1.0,
+            phase: 0.1 * f64::from(n),
+        })
+        .collect()
+}
+
+pub fn drive_params(axis: &CamAxis) -> DriveParams {
+    DriveParams { initial_position: axis.at(0.0), ..DriveParams::default() }
+}
+
+fn as_i32(v: Option<Value>) -> i32 {
+    match v {
+        Some(Value::I32(x)) => x,
+        other => panic!("expected an i32, got {other:?}"),
+    }
+}
+
+#[derive(Default)]
+struct Shared {
+    latest: Option<CycleSample>,
+    counting: bool,
+    counted: u64,
+    misses: Vec<String>,
+    min_max: Vec<(i32, i32)>,
+    missed_cycles: u64,
+    stopping: bool,
+    after_stop: Vec<CycleSample>,
+}
+
+pub struct Outcome {
+    pub mn: MnStats,
+    pub monitored_cycles: u64,
+    pub missed_cycles: u64,
+}
+
+/// Runs the scenario; asserts boot-up, per-cycle freshness (< 0.1 % misses) and the quick stop.
+pub fn run_scenario(
+    label: &str,
+    mn_link: Arc<dyn EthLink>,
+    cn_links: Vec<Arc<dyn EthLink>>,
+    monitor_link: Arc<dyn EthLink>,
+    config: MnConfig,
+    max_missed_fraction: f64,
+) -> Outcome {
+    assert_eq!(cn_links.len(), NODES.len());
+    let axes = cam();
+    let shared = Arc::new(Mutex::new(Shared {
+        min_max: vec![(i32::MAX, i32::MIN); NODES.len()],
+        ..Shared::default()
+    }));
+    let stop = Arc::new(AtomicBool::new(false));
+    let monitor_thread = {
+        let shared = Arc::clone(&shared);
+        let stop = Arc::clone(&stop);
+        std::thread::spawn(move || {
+            let mut monitor = Monitor::new(map(), MonitorConfig { stale_after: 0 });
+            monitor
+                .run(&*monitor_link, &stop, |s| {
+                    let mut sh = shared.lock().unwrap();
+                    if sh.counting {
+                        sh.counted += 1;
+                        if !s.all_fresh() {
+                            sh.missed_cycles += 1;
+                        }
+                        for n in &s.nodes {
+                            if n.stale || !n.valid || n.error.is_some() {
+                                let m = format!(
+                                    "cycle {}: node {} age {:?} valid {} state {:?} err {:?} (polled {:?}, pres {:?})",
+                                    s.index,
+                                    n.node,
+                                    n.age,
+                                    n.valid,
+                                    n.nmt_state,
+                                    n.error,
+                                    s.report.polled,
+                                    s.report.pres.iter().map(|p| p.node).collect::<Vec<_>>()
+                                );
+                                sh.misses.push(m);
+                            } else {
+                                let i = NODES.iter().position(|x| *x == n.node).unwrap();
+                                let p = as_i32(n.value("position"));
+                                let (lo, hi) = sh.min_max[i];
+                                sh.min_max[i] = (lo.min(p), hi.max(p));
+                            }
+                        }
+                    }
+                    if sh.stopping {
+                        sh.after_stop.push(s.clone());
+                    }
+                    sh.latest = Some(s.clone());
+                    ControlFlow::Continue(())
+                })
+        })
+    };
+
+    let mut b =
+        Segment::builder().config(config).mn_link(mn_link).program(Box::new(CamProgram::new(axes.clone())));
+    for ((node, link), axis) in NODES.iter().zip(cn_links).zip(&axes) {
+        b = b.drive(*node, link, drive_params(axis));
+    }
+    let t0 = Instant::now();
+    let segment = b.start().unwrap();
+    // Boot-up: reduced PreOp1 cycles, IdentRequests, PreOp2, NMT commands, OPERATIONAL.
+    assert!(segment.wait_operational(Duration::from_secs(10)), "{label}: MN state {}", segment.mn_state());
+    let boot = t0.elapsed();
+    for n in NODES {
+        assert_eq!(segment.cn_state(n), Some(NmtState::Operational), "{label}: node {n}");
+    }
+    // Let one full cycle pass with the operational state in every PRes, then count.
+    std::thread::sleep(config.cycle * 5);
+    segment.reset_stats();
+    shared.lock().unwrap().counting = true;
+    std::thread::sleep(Duration::from_secs_f64(seconds()));
+    let mn_stats = segment.stats();
+    let (counted, missed_cycles, misses, min_max, before) = {
+        let mut sh = shared.lock().unwrap();
+        sh.counting = false;
+        (sh.counted, sh.missed_cycles, sh.misses.clone(), sh.min_max.clone(), sh.latest.clone().unwrap())
+    };
+
+    // Quick stop: each drive must stop within v0²/(2 a_b) plus the travel during the reaction
+    // time (the sample is up to 1 cycle old, and the quick-stop bit reaches the drive in the
+    // next PReq, applied from the SoC after it: up to 3 cycles at |v0|; 5 allowed for
+    // scheduling noise), plus 2 units of rounding.
+    let j = mn_stats.jitter();
+    let r = mn_stats.rtt();
+    eprintln!(
+        "{label}: boot {:?}; {} cycles monitored, {} with a stale/invalid node ({} node misses); MN: {} cycles, jitter p50 {} us p99 {} us max {} us, \
+         PReq->PRes p50 {} us p99 {} us max {} us, PRes misses {:?}, late {}, overruns {}",
+        boot,
+        counted,
+        missed_cycles,
+        misses.len(),
+        mn_stats.cycles,
+        j.p50 / 1000,
+        j.p99 / 1000,
+        j.max / 1000,
+        r.p50 / 1000,
+        r.p99 / 1000,
+        r.max / 1000,
+        mn_stats.pres_missed,
+        mn_stats.pres_late,
+        mn_stats.overruns,
+    );
+    for m in misses.iter().take(20) {
+        eprintln!("{label}: miss {m}");
+    }
+    // Quick stop. The first PRes whose status word shows the quick-stop bit (set when the
+    // drive received the flag in its PReq) gives position p_q and speed v_q; braking starts at
+    // the next SoC, so the drive must come to rest within |v_q| * 1 cycle + v_q²/(2 a_b) of
+    // p_q (plus 2 units of rounding).
+    shared.lock().unwrap().stopping = true;
+    segment.quick_stop(true);
+    std::thread::sleep(Duration::from_millis(300));
+    let (after, trace) = {
+        let sh = shared.lock().unwrap();
+        (sh.latest.clone().unwrap(), sh.after_stop.clone())
+    };
+    let brake = DriveParams::default().brake_decel;
+    for n in NODES {
+        let first_qs = trace
+            .iter()
+            .find(|s| matches!(s.node(n).unwrap().value("status"), Some(Value::U16(w)) if w & 0x0002 != 0))
+            .unwrap_or_else(|| panic!("{label}: node {n} never reported quick stop"));
+        let q = first_qs.node(n).unwrap();
+        let (pq, vq) = (f64::from(as_i32(q.value("position"))), f64::from(as_i32(q.value("speed"))));
+        let a0 = after.node(n).unwrap();
+        let (p1, v1) = (f64::from(as_i32(a0.value("position"))), as_i32(a0.value("speed")));
+        assert_eq!(v1, 0, "{label}: node {n} still moving after quick stop");
+        let allowed = vq * vq / (2.0 * brake) + vq.abs() * config.cycle.as_secs_f64() + 2.0;
+        let moved = (p1 - pq).abs();
+        assert!(moved <= allowed, "{label}: node {n} moved {moved} > {allowed} (v_q {vq})");
+        eprintln!(
+            "{label}: node {n}: quick stop seen {} cycles after the request, v_q {vq}, braked over {moved} (allowed {allowed:.1}), speed at request {:?}",
+            first_qs.index.saturating_sub(before.index),
+            before.node(n).unwrap().value("speed")
+        );
+    }
+    stop.store(true, Ordering::Relaxed);
+    let final_stats = segment.stop();
+    monitor_thread.join().unwrap().unwrap();
+
+    let _ = final_stats;
+    // The cycle count follows the wall time: at least 25 % of the nominal cycles ran (overruns
+    // under CPU contention skip cycles; they are counted and printed).
+    let expected = seconds() / config.cycle.as_secs_f64();
+    assert!(counted as f64 >= 0.25 * expected, "{label}: {counted} cycles monitored, expected ~{expected}");
+    // Missed cycles (any node stale or invalid) below the limit; each miss is printed above.
+    assert!(
+        (missed_cycles as f64) < max_missed_fraction * counted as f64,
+        "{label}: {missed_cycles} missed cycles of {counted} (limit {max_missed_fraction})"
+    );
+    // Drives followed the cam: positions span most of the ±2000 amplitude.
+    for (i, (lo, hi)) in min_max.iter().enumerate() {
+        assert!(hi - lo > 3000, "{label}: node {} range {lo}..{hi}", NODES[i]);
+    }
+    Outcome { mn: mn_stats, monitored_cycles: counted, missed_cycles }
+}
+
+/// Segment scenarios take both cores for their cycle threads: one at a time per test
+/// binary, or they would measure each other.
+pub fn exclusive() -> std::sync::MutexGuard<'static, ()> {
+    static LOCK: Mutex<()> = Mutex::new(());
+    LOCK.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
