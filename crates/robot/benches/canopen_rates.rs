@@ -285,7 +285,28 @@ fn main() {
              ({total} in {seconds} s, {errors} errors)",
             nodes.len()
         );
-        rate
+        // (e) the same eight drives from ONE thread with `sdo_upload_many`: every request
+        // sent, then the answers collected as they come.
+        let requests: Vec<(u8, u16, u8)> = nodes.iter().map(|n| (*n, 0x6041, 0)).collect();
+        let (mut ok, mut errs) = (0u64, 0u64);
+        let start = Instant::now();
+        let until = start + Duration::from_secs_f64(seconds);
+        while Instant::now() < until {
+            for r in master.sdo_upload_many(&requests) {
+                if r.is_ok() {
+                    ok += 1;
+                } else {
+                    errs += 1;
+                }
+            }
+        }
+        let e_rate = ok as f64 / start.elapsed().as_secs_f64();
+        println!(
+            "RATE (e) Motus master, one thread, sdo_upload_many over {} simulated drives: {e_rate:.0} uploads/s \
+             ({ok} in {seconds} s, {errs} errors)",
+            nodes.len()
+        );
+        rate.max(e_rate)
     };
 
     // (c) python-canopen's master against the same simulated drive.
@@ -301,7 +322,7 @@ fn main() {
         (true, Some(v), Some(rate)) => {
             println!("RATE (c) python-canopen master -> Motus sim drive (node {SIM_NODE}): {rate:.0} uploads/s ({v})");
             println!(
-                "RATIO (d)/(c) Motus master with concurrent transfers / python-canopen master: {:.1}x (target >= 10x: {})",
+                "RATIO max((d),(e))/(c) Motus master with concurrent transfers / python-canopen master: {:.1}x (target >= 10x: {})",
                 d_rate / rate,
                 if d_rate / rate >= 10.0 { "met" } else { "NOT met" }
             );

@@ -1,6 +1,7 @@
 //! SDO services of the runtime: transfers, typed helpers, PDO configuration, node scan
 //! and EDS-driven dumps.
 
+use std::collections::HashMap;
 use std::ops::RangeInclusive;
 use std::path::Path;
 use std::sync::mpsc::{channel, RecvTimeoutError};
@@ -95,6 +96,116 @@ impl Inner {
         }
     }
 
+    /// Runs upload transfers to distinct nodes concurrently on the calling thread.
+    pub(crate) fn upload_many(
+        &self,
+        requests: &[(u8, u16, u8)],
+        timeout: Duration,
+    ) -> Vec<Result<Vec<u8>, MasterError>> {
+        let mut results: Vec<Option<Result<Vec<u8>, MasterError>>> = requests.iter().map(|_| None).collect();
+        // One channel per node, locked in node order (no lock-order inversion with
+        // other callers); a node named twice is refused.
+        let mut order: Vec<usize> = (0..requests.len()).collect();
+        order.sort_by_key(|i| requests.get(*i).map(|r| r.0));
+        let mut node_locks = Vec::new();
+        let mut seen = std::collections::HashSet::new();
+        for &i in &order {
+            let Some(&(node, index, sub)) = requests.get(i) else { continue };
+            if !seen.insert(node) {
+                if let Some(slot) = results.get_mut(i) {
+                    *slot = Some(Err(MasterError::InvalidArgument(format!(
+                        "node {node} named twice in one batch (0x{index:04X}:{sub:02X})"
+                    ))));
+                }
+                continue;
+            }
+            node_locks.push((i, self.node_lock(node)));
+        }
+        let guards: Vec<_> = node_locks.iter().map(|(i, l)| (*i, lock(l))).collect();
+        let (tx, rx) = channel();
+        let mut active: HashMap<u8, (usize, SdoTransfer)> = HashMap::new();
+        let mut waiter_guards = Vec::new();
+        for (i, _) in &guards {
+            let Some(&(node, index, sub)) = requests.get(*i) else { continue };
+            lock(&self.sdo_waiters).insert(node, tx.clone());
+            waiter_guards.push(WaiterGuard { inner: self, node });
+            let started = SdoTransfer::upload(node, index, sub, Instant::now(), timeout)
+                .map_err(MasterError::from)
+                .and_then(|(t, first)| {
+                    self.send(&first, || format!("SDO upload from node {node}"))?;
+                    Ok(t)
+                });
+            match started {
+                Ok(t) => {
+                    active.insert(node, (*i, t));
+                }
+                Err(e) => {
+                    if let Some(slot) = results.get_mut(*i) {
+                        *slot = Some(Err(e));
+                    }
+                }
+            }
+        }
+        while !active.is_empty() {
+            let next = active.values().filter_map(|(_, t)| t.deadline()).min();
+            let wait = next.map_or(Duration::ZERO, |d| d.saturating_duration_since(Instant::now()));
+            let (node, step) = match rx.recv_timeout(wait) {
+                Ok(r) => {
+                    let node = u8::try_from(r.frame.id().wrapping_sub(0x580)).unwrap_or(0);
+                    match active.get_mut(&node) {
+                        Some((_, t)) => (node, t.on_frame(&r.frame, Instant::now())),
+                        None => continue,
+                    }
+                }
+                Err(_) => {
+                    // Time-out: poll every transfer (the one due fails, the others wait).
+                    let now = Instant::now();
+                    let due: Vec<u8> = active
+                        .iter()
+                        .filter(|(_, (_, t))| t.deadline().is_some_and(|d| d <= now))
+                        .map(|(n, _)| *n)
+                        .collect();
+                    let Some(node) = due.first().copied() else { continue };
+                    match active.get_mut(&node) {
+                        Some((_, t)) => (node, t.poll(now)),
+                        None => continue,
+                    }
+                }
+            };
+            let outcome = match step {
+                SdoStep::Wait => None,
+                SdoStep::Send(f) => match self.send(&f, || format!("SDO upload from node {node}")) {
+                    Ok(()) => None,
+                    Err(e) => Some(Err(e)),
+                },
+                SdoStep::Done(data) => Some(Ok(data)),
+                SdoStep::Failed { abort, error } => {
+                    if let Some(a) = abort {
+                        if let Err(e) = self.send(&a, || format!("SDO abort to node {node}")) {
+                            tracing::warn!(error = %e, "could not send SDO abort");
+                        }
+                    }
+                    Some(Err(error.into()))
+                }
+            };
+            if let Some(result) = outcome {
+                if let Some((i, _)) = active.remove(&node) {
+                    if let Some(slot) = results.get_mut(i) {
+                        *slot = Some(result);
+                    }
+                }
+            }
+        }
+        drop(waiter_guards);
+        drop(guards);
+        results
+            .into_iter()
+            .map(|r| {
+                r.unwrap_or_else(|| Err(MasterError::InvalidArgument("SDO batch: request not run".into())))
+            })
+            .collect()
+    }
+
     pub(crate) fn upload(
         &self,
         node: u8,
@@ -158,6 +269,15 @@ impl Master {
     /// Writes `data` to `index:sub` of `node` (expedited for 1–4 bytes, else segmented).
     pub fn sdo_download(&self, node: u8, index: u16, sub: u8, data: &[u8]) -> Result<(), MasterError> {
         self.inner.download(node, index, sub, data, self.sdo_timeout())
+    }
+
+    /// Uploads several objects from **different** nodes at once: every request is sent,
+    /// then the answers are collected as they come (one SDO channel per node, as CiA 301
+    /// allows), so the transfers overlap instead of waiting for each other. Results come
+    /// back in the order of `requests`. A node named twice is refused for its second
+    /// request (its SDO channel is busy) without affecting the others.
+    pub fn sdo_upload_many(&self, requests: &[(u8, u16, u8)]) -> Vec<Result<Vec<u8>, MasterError>> {
+        self.inner.upload_many(requests, self.sdo_timeout())
     }
 
     /// Uploads and checks the length: exactly `want` bytes, or 4 bytes from an expedited
