@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs the independent implementations the interoperability tests compare Motus
-# against (specs/oracles.md): python-can and canopen (pinned, from PyPI) and tshark.
+# against (specs/oracles.md): python-can and canopen (pinned, from PyPI), tshark, and
+# LinuxCNC's standalone G-code interpreter rs274 (Debian's linuxcnc-uspace).
 # Idempotent: does nothing when they are already there.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,6 +17,20 @@ if ! command -v tshark >/dev/null; then
       apt-get update -q >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -q tshark >/dev/null; }
   else
     echo "tshark is needed by the tests: sudo apt-get install tshark" >&2
+    exit 1
+  fi
+fi
+apt_install() {
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "$@" >/dev/null || {
+    apt-get update -q >/dev/null &&
+      DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "$@" >/dev/null; }
+}
+if ! command -v rs274 >/dev/null || ! /usr/bin/python3 -c 'import gcode' 2>/dev/null; then
+  if [ "$(id -u)" = 0 ]; then
+    echo "installing linuxcnc-uspace (rs274 and its Python gcode module)"
+    apt_install linuxcnc-uspace
+  else
+    echo "rs274 is needed by the tests: sudo apt-get install --no-install-recommends linuxcnc-uspace" >&2
     exit 1
   fi
 fi

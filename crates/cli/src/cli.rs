@@ -69,6 +69,9 @@ pub enum Command {
     /// The predictive collision supervisor.
     #[command(subcommand)]
     Safety(SafetyCommand),
+    /// Ethernet POWERLINK tools.
+    #[command(subcommand)]
+    Epl(crate::cli_epl::EplCommand),
 }
 
 /// `motus safety` commands.
@@ -84,6 +87,12 @@ pub enum SafetyCommand {
         #[arg(long)]
         trace: PathBuf,
     },
+    /// Supervise a POWERLINK segment online: SafeToRun as a safety lease to every drive,
+    /// quick stop (lease revoke) the moment a rule fails; prints every change as JSON lines.
+    /// Standard input takes operator commands: `reset` (restart after a stop), `stop`.
+    Run(crate::cli_epl::SafetyRunArgs),
+    /// Administrator action: approve the rules and drive parameters (signed approval file).
+    Approve(crate::cli_epl::SafetyApproveArgs),
 }
 
 /// Frame formats of `decode` / `encode`.
@@ -136,6 +145,8 @@ pub enum SimCommand {
     Icla(crate::cli_can::SimIclaArgs),
     /// The simulated optical-mouse odometry converter on a pty.
     Mouse(crate::cli_can::SimMouseArgs),
+    /// A simulated POWERLINK segment: Managing Node and servo-drive CNs (the juggler).
+    Epl(crate::cli_epl::SimEplArgs),
 }
 
 /// Options of `motus sim nfv2`.

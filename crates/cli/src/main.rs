@@ -4,6 +4,7 @@
 
 mod cli;
 mod cli_can;
+mod cli_epl;
 mod commands;
 mod hex;
 mod progress;

@@ -13,6 +13,8 @@
 //! * Encoding a frame built by hand pads it with zeros to 60 bytes ([`Padding::Auto`]).
 //! * [`CycleTracker`]: fed decoded frames and capture timestamps, reports per SoC cycle which
 //!   nodes were polled and which answered with a PRes.
+//! * [`SafetyLease`]: the Motus safety lease (a manufacturer-specific ASnd) that grants or
+//!   revokes drives' permission to run.
 //! * [`ValueMap`]: per-node process values at PRes payload offsets (TOML `--map` files).
 //!
 //! ```
@@ -82,6 +84,7 @@ pub mod ethernet;
 pub mod flags;
 pub mod frame;
 pub mod ident;
+pub mod lease;
 pub mod preq;
 pub mod pres;
 pub mod sdo;
@@ -100,6 +103,7 @@ pub use ethernet::{EthernetHeader, MacAddr, ETHERTYPE_EPL, ETHERTYPE_VLAN, MIN_F
 pub use flags::{Flags, PrRs};
 pub use frame::{EplFrame, Message, Padding};
 pub use ident::{FixedText, IdentResponse};
+pub use lease::{SafetyLease, SAFETY_LEASE_SERVICE_ID};
 pub use preq::PReq;
 pub use pres::PRes;
 pub use sdo::{SdoCommand, SdoFrame};

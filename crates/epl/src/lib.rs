@@ -9,15 +9,19 @@
 //! * [`sim`]: a simulated segment: a Managing Node running the cycle (boot-up, SoC, PReq,
 //!   PRes time-outs, SoA, NMT commands) and Controlled Nodes that behave like servo drives,
 //!   driven by a [`sim::MotionProgram`].
+//! * [`netns`]: network namespaces joined by a bridge, for tests on a real kernel data path.
 //! * [`monitor`]: a passive listener that decodes every frame, groups them into cycles and
 //!   extracts mapped process values per node with freshness; [`replay`] feeds it from a pcap
 //!   or pcapng file.
 #![deny(unsafe_code)]
 
 pub mod monitor;
+pub mod netns;
 pub mod replay;
 pub mod sim;
 pub mod transport;
 
 pub use monitor::{CycleSample, Monitor, MonitorConfig, MonitorStats, NodeSample};
-pub use transport::{EthLink, FaultConfig, FaultCounters, FaultyLink, PcapLink, RawSocket, UdpHub, UdpLink};
+pub use transport::{
+    open_link, EthLink, FaultConfig, FaultCounters, FaultyLink, PcapLink, RawSocket, UdpHub, UdpLink,
+};

@@ -106,6 +106,18 @@ impl Snapshot {
         s
     }
 
+    /// Parses [`Snapshot::canonical_text`] back (`key=value` lines, sorted, no duplicates).
+    pub fn from_canonical_text(text: &str) -> Result<Snapshot, String> {
+        let mut lines = BTreeMap::new();
+        for (i, line) in text.lines().enumerate() {
+            let (k, v) = line.split_once('=').ok_or_else(|| format!("line {}: no '=' in {line:?}", i + 1))?;
+            if lines.insert(k.to_owned(), v.to_owned()).is_some() {
+                return Err(format!("line {}: key {k:?} given twice", i + 1));
+            }
+        }
+        Ok(Snapshot { lines })
+    }
+
     /// SHA-256 of [`Snapshot::canonical_text`].
     pub fn fingerprint(&self) -> Fingerprint {
         Fingerprint(Sha256::digest(self.canonical_text().as_bytes()).into())

@@ -8,14 +8,19 @@
 //! - [`expr`] and [`rules`]: rule expressions (limits, region, collision, interlocks,
 //!   `&&`/`||`/`!`) and the TOML configuration.
 //! - [`supervisor`]: per-cycle evaluation, [`supervisor::Lease`], diagnosis.
+//! - [`fanout`]: quick-stop fan-out of decisions to every drive ([`fanout::StopTarget`], for any
+//!   axis of the axis model or a field-bus broadcast), lease renewal and expiry.
 //! - [`integrity`]: SHA-256 fingerprint of the configuration, change report, admin approval.
+//! - [`approval`]: the administrator's signed approval file (HMAC-SHA256 with the admin key).
 //! - [`trace`]: offline evaluation of a CSV trace.
 //! - [`sim`]: a simulated juggler for tests and benchmarks.
 //!
 //! There is deliberately no way to set SafeToRun from outside: it only results from
 //! [`supervisor::Supervisor::evaluate`].
 
+pub mod approval;
 pub mod expr;
+pub mod fanout;
 pub mod integrity;
 pub mod model;
 pub mod predict;
@@ -24,7 +29,11 @@ pub mod sim;
 pub mod supervisor;
 pub mod trace;
 
-pub use integrity::{AdminToken, DriveParameters, Fingerprint, Integrity, IntegrityError, Snapshot};
+pub use approval::{Approval, ApprovalError};
+pub use fanout::{AxisStop, Fanout, FanoutReport, Restart, StopError, StopTarget};
+pub use integrity::{
+    secret_hash, AdminToken, DriveParameters, Fingerprint, Integrity, IntegrityError, Snapshot,
+};
 pub use model::{AxisModel, Limits, ModelError, Unit, UpDown};
 pub use rules::{ConfigError, RuleSet, SafetyConfig};
 pub use supervisor::{CycleInput, Decision, Diagnosis, Lease, Mode, Sample, Supervisor};

@@ -94,3 +94,20 @@ fn check_names_what_changed_and_only_admin_approves() {
     assert!(integ.check(&current).is_ok());
     assert!(format!("{admin:?}").contains("<secret>"));
 }
+
+#[test]
+fn approval_file_signed_with_the_admin_key_round_trips_and_rejects_edits() {
+    let key = b"0123456789abcdef-admin-key";
+    let s = snap(JUGGLER_TOML, &drives());
+    let a = Approval::sign(&s, "alice", "2026-11-21T20:00:00Z", key).unwrap();
+    let text = a.to_toml().unwrap();
+    let back = Approval::from_toml(&text).unwrap();
+    assert_eq!(back.verify(key).unwrap(), s);
+    // Another key: refused.
+    assert_eq!(back.verify(b"another-key-of-16+bytes"), Err(ApprovalError::BadSignature));
+    // An edited approved value (a student widening a limit in the file): refused.
+    let edited = text.replace("axis[thrower].limits.max=3400.0", "axis[thrower].limits.max=9400.0");
+    assert_ne!(edited, text, "the canonical text names the thrower's limit");
+    assert_eq!(Approval::from_toml(&edited).unwrap().verify(key), Err(ApprovalError::BadSignature));
+    assert_eq!(Approval::sign(&s, "a", "t", b"short").unwrap_err(), ApprovalError::KeyTooShort(5));
+}

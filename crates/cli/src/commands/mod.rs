@@ -5,6 +5,7 @@ mod canbus;
 mod canopen;
 mod codec;
 mod demo;
+mod epl;
 mod kv01;
 mod nfv2;
 mod ps1a;
@@ -34,6 +35,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Canopen(c) => canopen::run(c),
         Command::Robot(r) => robot::run(r),
         Command::Safety(c) => safety::run(c),
+        Command::Epl(c) => epl::run(c),
     }
 }
 

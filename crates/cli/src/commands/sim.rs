@@ -14,6 +14,7 @@ pub fn run(cmd: SimCommand) -> Result<()> {
         SimCommand::Nfv2(args) => nfv2(args),
         SimCommand::Icla(args) => super::sim_can::icla(args),
         SimCommand::Mouse(args) => super::sim_can::mouse(args),
+        SimCommand::Epl(args) => super::epl::sim(args),
     }
 }
 

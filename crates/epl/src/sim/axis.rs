@@ -12,13 +12,23 @@ pub struct DriveParams {
     pub brake_decel: f64,
     /// Position at power-up.
     pub initial_position: f64,
+    /// When set, the drive runs only under a valid safety lease
+    /// ([`motus_epl_protocol::SafetyLease`]) no longer ago than this: a revoke, or no renewal
+    /// within this time, makes it quick-stop. `None`: leases are ignored.
+    pub lease_timeout: Option<std::time::Duration>,
 }
 
 impl Default for DriveParams {
     /// The juggler's horizontal axes (`specs/juggler-safety.md`): 5000 deg/s = 50 000 units/s,
     /// 500 000 units/s², braking 1 600 000 units/s².
     fn default() -> Self {
-        Self { max_speed: 50_000.0, max_accel: 500_000.0, brake_decel: 1_600_000.0, initial_position: 0.0 }
+        Self {
+            max_speed: 50_000.0,
+            max_accel: 500_000.0,
+            brake_decel: 1_600_000.0,
+            initial_position: 0.0,
+            lease_timeout: None,
+        }
     }
 }
 

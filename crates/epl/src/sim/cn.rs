@@ -6,17 +6,17 @@
 use std::net::Ipv4Addr;
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use motus_epl_protocol::{
     Asnd, EplFrame, FixedText, Flags, IdentResponse, MacAddr, Message, NmtCommandId, NmtState, PRes, PrRs,
-    RequestedService, StatusResponse, BROADCAST_NODE_ID, MN_NODE_ID,
+    RequestedService, SafetyLease, StatusResponse, BROADCAST_NODE_ID, MN_NODE_ID,
 };
 
 use super::axis::{AxisModel, DriveParams};
 use super::pdo::{
-    Actual, SetPoint, CONTROL_ENABLE, CONTROL_QUICK_STOP, STATUS_ENABLED, STATUS_QUICK_STOP,
-    STATUS_STANDSTILL,
+    Actual, SetPoint, CONTROL_ENABLE, CONTROL_QUICK_STOP, STATUS_ENABLED, STATUS_HOMED, STATUS_LEASE_STOP,
+    STATUS_QUICK_STOP, STATUS_STANDSTILL,
 };
 use crate::transport::{EthLink, MAX_FRAME};
 
@@ -34,6 +34,9 @@ pub(crate) struct Cn {
     axis: AxisModel,
     setpoint: SetPoint,
     last_relative_us: Option<u64>,
+    lease_timeout: Option<Duration>,
+    /// Expiry of the newest safe lease (`None`: none yet, or revoked).
+    lease_until: Option<Instant>,
     shared: Arc<CnShared>,
     out: Vec<u8>,
 }
@@ -50,6 +53,8 @@ impl Cn {
             axis: AxisModel::new(params),
             setpoint: SetPoint { control: 0, target: initial },
             last_relative_us: None,
+            lease_timeout: params.lease_timeout,
+            lease_until: None,
             shared,
             out: Vec::with_capacity(MAX_FRAME),
         }
@@ -86,6 +91,10 @@ impl Cn {
         if self.axis.speed() == 0.0 {
             status |= STATUS_STANDSTILL;
         }
+        if self.lease_stop(Instant::now()) {
+            status |= STATUS_LEASE_STOP;
+        }
+        status |= STATUS_HOMED;
         Actual {
             status,
             position: self.axis.position().round() as i32,
@@ -138,6 +147,36 @@ impl Cn {
         }
     }
 
+    /// True when this drive needs a lease and has no valid one at `now`.
+    fn lease_stop(&self, now: Instant) -> bool {
+        self.lease_timeout.is_some() && self.lease_until.map_or(true, |until| now >= until)
+    }
+
+    fn on_lease(&mut self, lease: &SafetyLease, at: Instant) {
+        let Some(timeout) = self.lease_timeout else { return };
+        if lease.safe {
+            let valid = Duration::from_micros(u64::from(lease.valid_for_us)).min(timeout);
+            self.lease_until = Some(at + valid);
+        } else {
+            if self.lease_until.is_some() {
+                tracing::info!(node = self.node, seq = lease.seq, "safety lease revoked: quick stop");
+            }
+            // Braking starts at the next SoC (the axis model steps once per cycle).
+            self.lease_until = None;
+        }
+    }
+
+    /// Handles one received frame (received at `at`).
+    pub(crate) fn handle_at(&mut self, frame: &EplFrame, at: Instant) {
+        if let Message::Asnd(asnd) = &frame.message {
+            if let Some(lease) = SafetyLease::from_asnd(asnd) {
+                self.on_lease(&lease, at);
+                return;
+            }
+        }
+        self.handle(frame);
+    }
+
     /// Handles one received frame.
     pub(crate) fn handle(&mut self, frame: &EplFrame) {
         match &frame.message {
@@ -153,7 +192,8 @@ impl Cn {
                 self.last_relative_us = Some(soc.relative_time);
                 let enabled =
                     self.setpoint.control & CONTROL_ENABLE != 0 && self.state == NmtState::Operational;
-                let quick_stop = self.setpoint.control & CONTROL_QUICK_STOP != 0;
+                let quick_stop =
+                    self.setpoint.control & CONTROL_QUICK_STOP != 0 || self.lease_stop(Instant::now());
                 let target = if enabled { f64::from(self.setpoint.target) } else { self.axis.position() };
                 self.axis.step(dt, target, quick_stop || !enabled && self.axis.speed() != 0.0);
             }
@@ -226,9 +266,9 @@ impl Cn {
         self.set_state(NmtState::NotActive);
         while !stop.load(Ordering::Relaxed) {
             match self.link.recv(&mut buf, Duration::from_millis(20)) {
-                Ok(Some((n, _))) => {
+                Ok(Some((n, at))) => {
                     if let Ok(frame) = EplFrame::decode(buf.get(..n).unwrap_or(&[])) {
-                        self.handle(&frame);
+                        self.handle_at(&frame, at);
                     }
                 }
                 Ok(None) => {}

@@ -12,7 +12,7 @@
 //! and `crates/epl-protocol/examples/acopos-map.toml`:
 //! | offset | type | meaning |
 //! |---|---|---|
-//! | 0 | u16 | status word: bit 0 [`STATUS_ENABLED`], bit 1 [`STATUS_QUICK_STOP`], bit 2 [`STATUS_STANDSTILL`] |
+//! | 0 | u16 | status word: bit 0 [`STATUS_ENABLED`], bit 1 [`STATUS_QUICK_STOP`], bit 2 [`STATUS_STANDSTILL`], bit 3 [`STATUS_LEASE_STOP`], bit 4 [`STATUS_HOMED`] |
 //! | 2..16 | – | zero |
 //! | 16 | i32 | actual position (units) |
 //! | 20 | i32 | actual speed (units/s) |
@@ -36,6 +36,10 @@ pub const STATUS_ENABLED: u16 = 0x0001;
 pub const STATUS_QUICK_STOP: u16 = 0x0002;
 /// Status word bit: speed is zero.
 pub const STATUS_STANDSTILL: u16 = 0x0004;
+/// Status word bit: stopped because the safety lease was revoked or expired.
+pub const STATUS_LEASE_STOP: u16 = 0x0008;
+/// Status word bit: the axis is homed (the simulated drives have absolute encoders).
+pub const STATUS_HOMED: u16 = 0x0010;
 
 /// A set-point carried in a PReq.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -99,3 +99,38 @@ pub(crate) fn recv_with_timeout(
         }
     }
 }
+
+/// Default number of ports of a UDP segment named by [`open_link`].
+pub const UDP_SEGMENT_SLOTS: u16 = 16;
+
+/// Opens a link named on the command line:
+/// * `udp://127.0.0.1:3819` joins the UDP segment of [`UDP_SEGMENT_SLOTS`] ports from 3819
+///   ([`UdpLink::join_segment`]; no privileges needed; `?slots=N` changes the block size);
+/// * anything else is a Linux interface name opened as a [`RawSocket`] (needs CAP_NET_RAW),
+///   promiscuous when `promiscuous` is set.
+pub fn open_link(name: &str, promiscuous: bool) -> io::Result<Arc<dyn EthLink>> {
+    if let Some(rest) = name.strip_prefix("udp://") {
+        let (addr, query) = rest.split_once('?').unwrap_or((rest, ""));
+        let base: std::net::SocketAddr = addr.parse().map_err(|e| {
+            io::Error::new(io::ErrorKind::InvalidInput, format!("{name}: not an address:port ({e})"))
+        })?;
+        let mut slots = UDP_SEGMENT_SLOTS;
+        for kv in query.split('&').filter(|s| !s.is_empty()) {
+            match kv.split_once('=') {
+                Some(("slots", v)) => {
+                    slots = v.parse().ok().filter(|n| *n >= 2).ok_or_else(|| {
+                        io::Error::new(io::ErrorKind::InvalidInput, format!("{name}: slots must be 2..65535"))
+                    })?;
+                }
+                _ => {
+                    return Err(io::Error::new(
+                        io::ErrorKind::InvalidInput,
+                        format!("{name}: unknown option {kv:?} (known: slots=N)"),
+                    ))
+                }
+            }
+        }
+        return Ok(Arc::new(UdpLink::join_segment(base, slots)?));
+    }
+    Ok(Arc::new(RawSocket::open(name, promiscuous)?))
+}

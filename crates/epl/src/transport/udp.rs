@@ -11,7 +11,11 @@
 //!
 //! Ports of one process share a [`UdpHub`] (a list of member addresses; a port that joins late,
 //! such as a monitor, is seen by the others from their next send). Ports in different processes
-//! use [`UdpLink::bind`] with an explicit peer list.
+//! use [`UdpLink::bind`] with an explicit peer list, or [`UdpLink::join_segment`]: a segment is a
+//! block of consecutive UDP ports (`base .. base + slots`); each port binds the first free one
+//! and sends to all the others (a send to a free slot is refused by the kernel and ignored), so
+//! `motus sim epl`, `motus epl monitor` and `motus safety run` in three processes see each
+//! other's frames with nothing to configure but the base port.
 //!
 //! Each port has a locally administered MAC `02:00:7f:00:PP:PP` (PP = its UDP port).
 
@@ -73,6 +77,25 @@ impl UdpLink {
     pub fn bind(local: SocketAddr, peers: Vec<SocketAddr>) -> io::Result<Self> {
         let socket = UdpSocket::bind(local)?;
         Self::from_socket(socket, Peers::Fixed(peers))
+    }
+
+    /// Joins the segment of `slots` consecutive ports starting at `base` (see the module
+    /// documentation): binds the first free port of the block; `AddrInUse` when all are taken.
+    pub fn join_segment(base: SocketAddr, slots: u16) -> io::Result<Self> {
+        let addrs: Vec<SocketAddr> = (0..slots)
+            .filter_map(|i| base.port().checked_add(i).map(|p| SocketAddr::new(base.ip(), p)))
+            .collect();
+        for a in &addrs {
+            match UdpSocket::bind(a) {
+                Ok(socket) => return Self::from_socket(socket, Peers::Fixed(addrs.clone())),
+                Err(e) if e.kind() == io::ErrorKind::AddrInUse => continue,
+                Err(e) => return Err(e),
+            }
+        }
+        Err(io::Error::new(
+            io::ErrorKind::AddrInUse,
+            format!("every port of the UDP segment {base} (+{slots}) is in use"),
+        ))
     }
 
     fn from_socket(socket: UdpSocket, peers: Peers) -> io::Result<Self> {

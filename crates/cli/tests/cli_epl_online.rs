@@ -1,0 +1,221 @@
+//! `motus sim epl`, `motus epl monitor`, `motus safety approve` and `motus safety run` as
+//! separate processes on the unprivileged UDP segment (loopback).
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+
+mod common;
+
+use common::{SimProcess, MOTUS};
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// A base port with 16 free UDP ports after it (best effort: probed now).
+fn free_segment() -> u16 {
+    for _ in 0..50 {
+        let s = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let base = s.local_addr().unwrap().port();
+        drop(s);
+        if base < 60_000 && (0..16).all(|i| std::net::UdpSocket::bind(("127.0.0.1", base + i)).is_ok()) {
+            return base;
+        }
+    }
+    panic!("no free block of 16 UDP ports");
+}
+
+/// The juggler's rules for a 1 ms cycle (the UDP link on a shared machine).
+fn rules_1ms(dir: &Path) -> PathBuf {
+    let text = std::fs::read_to_string(root().join("crates/safety/examples/juggler.toml")).unwrap();
+    let text = text
+        .replace("cycle_time = 0.0004", "cycle_time = 0.001")
+        .replace("lease_time = 0.0008", "lease_time = 0.002");
+    let p = dir.join("juggler.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// A running process whose stdout lines arrive on a channel.
+struct Lines {
+    child: Child,
+    rx: mpsc::Receiver<String>,
+}
+
+/// Sends one operator command line to the process's standard input.
+fn operator(l: &mut Lines, cmd: &str) {
+    use std::io::Write;
+    let stdin = l.child.stdin.as_mut().unwrap();
+    writeln!(stdin, "{cmd}").unwrap();
+    stdin.flush().unwrap();
+}
+
+impl Lines {
+    fn start(args: &[&str]) -> Lines {
+        let mut child = Command::new(MOTUS)
+            .args(args)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap();
+        let out = child.stdout.take().unwrap();
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            for l in BufReader::new(out).lines().map_while(Result::ok) {
+                if tx.send(l).is_err() {
+                    break;
+                }
+            }
+        });
+        Lines { child, rx }
+    }
+
+    /// Waits up to `timeout` for a line containing all of `needles`.
+    fn wait_for(&self, needles: &[&str], timeout: Duration) -> String {
+        let end = Instant::now() + timeout;
+        let mut seen = Vec::new();
+        while let Some(left) = end.checked_duration_since(Instant::now()) {
+            match self.rx.recv_timeout(left) {
+                Ok(l) if needles.iter().all(|n| l.contains(n)) => return l,
+                Ok(l) => seen.push(l),
+                Err(_) => break,
+            }
+        }
+        panic!(
+            "no line with {needles:?} within {timeout:?}; saw {:?}",
+            &seen[seen.len().saturating_sub(10)..]
+        );
+    }
+}
+
+impl Drop for Lines {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+#[test]
+fn online_supervisor_stops_a_student_program_and_blocks_on_an_unapproved_change() {
+    let dir = tempfile::tempdir().unwrap();
+    let rules = rules_1ms(dir.path());
+    let key = dir.path().join("admin.key");
+    std::fs::write(&key, "a-secret-administrator-key-0123456789\n").unwrap();
+    let approval = dir.path().join("juggler.approved");
+    let seg = format!("udp://127.0.0.1:{}", free_segment());
+    let s = |p: &Path| p.to_str().unwrap().to_owned();
+
+    // Administrator approves the rules.
+    let o = Command::new(MOTUS)
+        .args([
+            "safety",
+            "approve",
+            "--rules",
+            &s(&rules),
+            "--key",
+            &s(&key),
+            "--admin",
+            "alice",
+            "--out",
+            &s(&approval),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["approved"].as_str().unwrap().len(), 64);
+
+    // The supervisor, then the machine running a student program that aims beyond a limit.
+    let mut sup = Lines::start(&[
+        "safety",
+        "run",
+        "--rules",
+        &s(&rules),
+        "--if",
+        &seg,
+        "--approval",
+        &s(&approval),
+        "--key",
+        &s(&key),
+    ]);
+    std::thread::sleep(Duration::from_millis(300));
+    let _sim = SimProcess::start(
+        &["sim", "epl", "--if", &seg, "--config", &s(&rules), "--program", "limit"],
+        "segment OPERATIONAL",
+    );
+    // The drives' layout (status 0, position 16, speed 20) for nodes 1..=5.
+    let monitor_map = dir.path().join("map.toml");
+    let mut map = String::new();
+    for n in 1..=5 {
+        map.push_str(&format!(
+            "[[node]]\nnode = {n}\nvalues = [{{ name = \"position\", offset = 16, type = \"i32\" }}, {{ name = \"speed\", offset = 20, type = \"i32\" }}]\n"
+        ));
+    }
+    std::fs::write(&monitor_map, map).unwrap();
+    // On a loaded machine a late frame may stop the drives before the program gets far (the
+    // lease expires); the operator then resets, as on the real machine.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let stop = loop {
+        assert!(Instant::now() < deadline, "no stop by limits_thrower");
+        let l = sup.wait_for(&["\"event\""], Duration::from_secs(10));
+        if l.contains("\"unsafe\"") && l.contains("limits_thrower") {
+            break l;
+        }
+        if l.contains("\"held\":true") {
+            operator(&mut sup, "reset");
+        }
+    };
+    let v: serde_json::Value = serde_json::from_str(&stop).unwrap();
+    let reaction = v["reaction_us"].as_f64().unwrap();
+    assert!(reaction > 0.0, "{stop}");
+    eprintln!("stop: {stop}");
+
+    // A monitor in a third process sees every drive stopped by the revoked lease.
+    let mon = Lines::start(&["epl", "monitor", "--if", &seg, "--map", &s(&monitor_map), "--cycles", "400"]);
+    let mut last = serde_json::Value::Null;
+    for _ in 0..400 {
+        let l = mon.wait_for(&["\"cycle\""], Duration::from_secs(5));
+        last = serde_json::from_str(&l).unwrap();
+    }
+    let nodes = last["nodes"].as_array().unwrap();
+    assert_eq!(nodes.len(), 5, "{last}");
+    for n in nodes {
+        assert_eq!(n["values"]["speed"].as_f64(), Some(0.0), "{n}");
+        assert!(n["values"]["position"].as_f64().unwrap() < 34_000.0, "{n}");
+    }
+
+    // A student edits the rules (widens the thrower's limit) without the admin action.
+    let text = std::fs::read_to_string(&rules).unwrap();
+    let edited = text.replace("limits = { min = -7600, max = 3400 }", "limits = { min = -7600, max = 9400 }");
+    assert_ne!(edited, text);
+    std::fs::write(&rules, edited).unwrap();
+    let blocked = sup.wait_for(&["\"event\":\"integrity\"", "\"ok\":false"], Duration::from_secs(5));
+    assert!(blocked.contains("axis[thrower].limits.max: 3400.0 -> 9400.0"), "{blocked}");
+
+    // A forged approval (signed with another key) is refused too.
+    let other_key = dir.path().join("other.key");
+    std::fs::write(&other_key, "not-the-administrator-key-000000").unwrap();
+    let o = Command::new(MOTUS)
+        .args([
+            "safety",
+            "approve",
+            "--rules",
+            &s(&rules),
+            "--key",
+            &s(&other_key),
+            "--admin",
+            "mallory",
+            "--out",
+            &s(&approval),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let still =
+        sup.wait_for(&["\"event\":\"integrity\"", "signature does not match"], Duration::from_secs(5));
+    assert!(still.contains("\"ok\":false"), "{still}");
+}

@@ -1,0 +1,25 @@
+//! The predictive collision supervisor ([`motus_safety`]) online on a POWERLINK segment
+//! ([`motus_epl`]): the juggler's safety chain without the PLC in between.
+//!
+//! * [`inputs`]: turns each PRes of a supervised drive into a supervisor [`motus_safety::Sample`]
+//!   (the node of an axis is its `id` in the rules; values by name from a value map: `position`,
+//!   `speed`, optionally `status` for the homed bit), scaled by the axis's `raw_per_unit`.
+//! * [`juggler`]: the simulated juggler's drives, patterns (juggle, limit, collide) and value
+//!   map, derived from a rules file.
+//! * [`lease`]: [`lease::EplLeaseTarget`], a [`motus_safety::StopTarget`] that broadcasts the
+//!   safety lease ASnd ([`motus_epl_protocol::SafetyLease`]): renewals while SafeToRun holds, a
+//!   revoke (quick stop of every drive) the moment it falls.
+//! * [`runner`]: [`runner::OnlineSupervisor`] evaluates the rules on **every** PRes and SoC
+//!   (not once per cycle: the reaction starts at the frame that makes the state unsafe),
+//!   applies the decision through a [`motus_safety::Fanout`] (the lease target plus any axes of
+//!   the axis model), checks the configuration's integrity, and records the reaction time
+//!   from the reception of the frame to the moment the stop left Motus.
+
+pub mod inputs;
+pub mod juggler;
+pub mod lease;
+pub mod runner;
+
+pub use inputs::{InputError, InputMap};
+pub use lease::EplLeaseTarget;
+pub use runner::{OnlineConfig, OnlineEvent, OnlineSupervisor, ReactionStats};

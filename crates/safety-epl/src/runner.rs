@@ -1,0 +1,282 @@
+//! [`OnlineSupervisor`]: the supervisor in the loop of a POWERLINK segment.
+//!
+//! Every received frame goes through [`OnlineSupervisor::on_frame`]: a SoC starts a new
+//! supervisor cycle (sample ages are counted in SoCs), a PRes of a supervised node updates its
+//! axes' samples. Both re-evaluate the rules at once and apply the decision through the
+//! [`Fanout`]: the first unsafe decision quick-stops every target before `on_frame` returns.
+//! Between frames, [`OnlineSupervisor::tick`] stops the targets when the last lease expired
+//! (no frames: stale data is unsafe, and a silent segment must not keep drives running).
+
+use std::io;
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use motus_epl::sim::Percentiles;
+use motus_epl::EthLink;
+use motus_epl_protocol::{EplFrame, Message};
+use motus_safety::{CycleInput, Fanout, Mode, Restart, RuleSet, Sample, StopTarget, Supervisor};
+
+use crate::inputs::InputMap;
+
+/// Options of the online supervisor.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OnlineConfig {
+    /// Operating mode (set by the station, never by a student program).
+    pub mode: Mode,
+    /// After a stop: wait for [`OnlineSupervisor::reset`] (default) or resume by itself.
+    pub restart: Restart,
+}
+
+impl Default for OnlineConfig {
+    fn default() -> Self {
+        Self { mode: Mode::Normal, restart: Restart::Manual }
+    }
+}
+
+/// A change of SafeToRun.
+#[derive(Debug, Clone, PartialEq)]
+pub enum OnlineEvent {
+    /// SafeToRun became true.
+    Safe {
+        /// Supervisor cycle (SoC count).
+        cycle: u64,
+        /// The drives stay stopped until [`OnlineSupervisor::reset`] (manual restart).
+        held: bool,
+    },
+    /// SafeToRun fell (or was false at the first evaluation).
+    Unsafe {
+        /// Supervisor cycle (SoC count).
+        cycle: u64,
+        /// Why (the first failing rule with predicted distances, stale data, or the
+        /// configuration changes).
+        diagnosis: String,
+        /// Time from the reception of the frame to the stop leaving Motus (all targets told).
+        reaction: Option<Duration>,
+        /// Targets that failed to stop.
+        errors: Vec<String>,
+    },
+}
+
+/// Reaction times collected by an [`OnlineSupervisor`].
+#[derive(Debug, Clone, Default)]
+pub struct ReactionStats {
+    /// One entry per stop caused by a frame: ns from its reception to the stop sent.
+    pub samples_ns: Vec<u64>,
+}
+
+impl ReactionStats {
+    /// p50/p99/max.
+    pub fn percentiles(&self) -> Percentiles {
+        Percentiles::of(&self.samples_ns)
+    }
+}
+
+/// The supervisor in the loop of a segment (see the module documentation).
+pub struct OnlineSupervisor {
+    supervisor: Supervisor,
+    inputs: InputMap,
+    fanout: Fanout,
+    samples: Vec<Option<Sample>>,
+    cycle: u64,
+    origin: Instant,
+    config: OnlineConfig,
+    integrity: Result<(), String>,
+    safe: Option<bool>,
+    reaction: ReactionStats,
+    frames: u64,
+}
+
+impl OnlineSupervisor {
+    /// A supervisor for `rules` fed by `inputs`, stopping `targets`; `origin` is the epoch of
+    /// lease times (give the same one to an [`crate::EplLeaseTarget`]). Integrity starts as
+    /// "not checked": call [`OnlineSupervisor::set_integrity`] before anything may run.
+    pub fn new(
+        rules: RuleSet,
+        inputs: InputMap,
+        targets: Vec<Box<dyn StopTarget>>,
+        origin: Instant,
+        config: OnlineConfig,
+    ) -> Self {
+        let n = rules.axes().len();
+        Self {
+            supervisor: Supervisor::new(rules),
+            inputs,
+            fanout: Fanout::new(targets).with_restart(config.restart),
+            samples: vec![None; n],
+            cycle: 0,
+            origin,
+            config,
+            integrity: Err("configuration integrity not checked yet".into()),
+            safe: None,
+            reaction: ReactionStats::default(),
+            frames: 0,
+        }
+    }
+
+    /// The outcome of the last integrity check (`Err` names what changed).
+    pub fn set_integrity(&mut self, result: Result<(), String>) {
+        self.integrity = result;
+    }
+
+    /// Changes the mode (the station's homing procedure).
+    pub fn set_mode(&mut self, mode: Mode) {
+        self.config.mode = mode;
+    }
+
+    /// Current SafeToRun (`None` before the first evaluation).
+    pub fn safe_to_run(&self) -> Option<bool> {
+        self.safe
+    }
+
+    /// The supervisor (rules, last reaches).
+    pub fn supervisor(&self) -> &Supervisor {
+        &self.supervisor
+    }
+
+    /// Reaction times so far.
+    pub fn reaction(&self) -> &ReactionStats {
+        &self.reaction
+    }
+
+    /// Frames processed.
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    /// How many times the targets were stopped.
+    pub fn stops(&self) -> u64 {
+        self.fanout.stops()
+    }
+
+    /// Latest sample per axis (rules order).
+    pub fn samples(&self) -> &[Option<Sample>] {
+        &self.samples
+    }
+
+    /// Processes one received frame (`at`: its reception time).
+    pub fn on_frame(&mut self, bytes: &[u8], at: Instant) -> Option<OnlineEvent> {
+        let frame = EplFrame::decode(bytes).ok()?;
+        self.frames += 1;
+        match &frame.message {
+            Message::Soc(_) => {
+                self.cycle += 1;
+            }
+            Message::PRes(pres) => {
+                let mut any = false;
+                for i in self.inputs.axes_of(frame.src_node).collect::<Vec<_>>() {
+                    // A payload too short for the map leaves the old sample to go stale.
+                    if let Some(s) = self.inputs.sample(i, &pres.payload, self.cycle) {
+                        if let Some(slot) = self.samples.get_mut(i) {
+                            *slot = Some(s);
+                            any = true;
+                        }
+                    }
+                }
+                if !any {
+                    return None;
+                }
+            }
+            _ => return None,
+        }
+        self.evaluate(at)
+    }
+
+    fn evaluate(&mut self, at: Instant) -> Option<OnlineEvent> {
+        let now = at.saturating_duration_since(self.origin);
+        let input = CycleInput {
+            now,
+            cycle: self.cycle,
+            mode: self.config.mode,
+            samples: &self.samples,
+            params_ok: self.integrity.is_ok(),
+        };
+        let decision = self.supervisor.evaluate(&input);
+        let report = self.fanout.apply(decision);
+        let sent = Instant::now();
+        let safe = decision.safe_to_run();
+        let was = self.safe.replace(safe);
+        if was == Some(safe) && !report.stopped {
+            return None;
+        }
+        if safe {
+            return Some(OnlineEvent::Safe { cycle: self.cycle, held: self.fanout.held() });
+        }
+        let reaction = report.stopped.then(|| sent.saturating_duration_since(at));
+        if let Some(r) = reaction {
+            self.reaction.samples_ns.push(u64::try_from(r.as_nanos()).unwrap_or(u64::MAX));
+        }
+        let diagnosis = match (&self.integrity, decision.diagnosis()) {
+            (Err(changes), _) => changes.clone(),
+            (Ok(()), Some(d)) => d.to_string(),
+            (Ok(()), None) => "unsafe".into(),
+        };
+        Some(OnlineEvent::Unsafe {
+            cycle: self.cycle,
+            diagnosis,
+            reaction,
+            errors: report.errors.iter().map(ToString::to_string).collect(),
+        })
+    }
+
+    /// Checks the lease between frames; stops the targets when it expired.
+    pub fn tick(&mut self, now: Instant) -> Option<OnlineEvent> {
+        let report = self.fanout.check_expiry(now.saturating_duration_since(self.origin));
+        if !report.stopped {
+            return None;
+        }
+        self.safe = Some(false);
+        Some(OnlineEvent::Unsafe {
+            cycle: self.cycle,
+            diagnosis: "no data from the segment: SafeToRun lease expired".into(),
+            reaction: None,
+            errors: report.errors.iter().map(ToString::to_string).collect(),
+        })
+    }
+
+    /// The operator's reset after a stop (manual restart): the next safe decision lets the
+    /// drives run again.
+    pub fn reset(&mut self) {
+        self.fanout.reset();
+        // Report the next safe decision as a change.
+        self.safe = None;
+    }
+
+    /// True while stopped and waiting for [`OnlineSupervisor::reset`].
+    pub fn held(&self) -> bool {
+        self.fanout.held()
+    }
+
+    /// Stops every target now (operator emergency stop); the next safe decision releases.
+    pub fn stop_all(&mut self) {
+        self.fanout.stop_all();
+        self.safe = Some(false);
+    }
+
+    /// Reads frames from `link` until `stop` is set or `on_event` breaks; `poll` bounds the
+    /// time between lease checks.
+    pub fn run(
+        &mut self,
+        link: &dyn EthLink,
+        stop: &AtomicBool,
+        poll: Duration,
+        mut on_event: impl FnMut(&mut Self, &OnlineEvent) -> ControlFlow<()>,
+    ) -> io::Result<()> {
+        let mut buf = vec![0u8; motus_epl::transport::MAX_FRAME];
+        while !stop.load(Ordering::Relaxed) {
+            let event = match link.recv(&mut buf, poll)? {
+                Some((n, at)) => {
+                    let e = self.on_frame(buf.get(..n).unwrap_or(&[]), at);
+                    e.or_else(|| self.tick(Instant::now()))
+                }
+                None => self.tick(Instant::now()),
+            };
+            if let Some(e) = event {
+                if on_event(self, &e).is_break() {
+                    break;
+                }
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,154 @@
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+//! Reaction time of the online supervisor on a real kernel data path (needs root, like CI):
+//! two veth ports on a bridge in network namespaces. A stimulus port plays the segment (SoC
+//! and the five drives' PRes, all safe), then one PRes that puts the thrower beyond its limit;
+//! the supervisor's port must answer with a safety-lease revoke. Repeated 10,000 times.
+//!
+//! Two figures per event:
+//! * inside Motus: from the reception of the unsafe PRes (when `recv` returned) to the revoke
+//!   handed to the kernel (`send` returned) — acceptance 4's "from the arrival of the PRes to
+//!   the quick-stop action leaving Motus";
+//! * end to end: from the stimulus's `send` of the PRes to its reception of the revoke (two
+//!   veth hops and the bridge, twice the kernel), an upper bound.
+
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use motus_epl::netns::BridgedPorts;
+use motus_epl::sim::Percentiles;
+use motus_epl::EthLink;
+use motus_epl_protocol::{EplFrame, Flags, MacAddr, Message, NmtState, PRes, PrRs, SafetyLease, Soc};
+use motus_safety::{RuleSet, JUGGLER_TOML};
+use motus_safety_epl::juggler;
+use motus_safety_epl::{EplLeaseTarget, InputMap, OnlineConfig, OnlineSupervisor};
+
+const EVENTS: usize = 10_000;
+
+fn pres(mac: MacAddr, node: u8, position: i32) -> Vec<u8> {
+    let mut payload = vec![0u8; 24];
+    payload[0] = 0x11; // enabled, homed
+    payload[16..20].copy_from_slice(&position.to_le_bytes());
+    let m = Message::PRes(PRes {
+        nmt_state: NmtState::Operational,
+        flags: Flags::RD,
+        pr_rs: PrRs::default(),
+        pdo_version: 0,
+        payload,
+        reserved: 0,
+    });
+    EplFrame::new(mac, MacAddr::BROADCAST, 255, node, m).encode().unwrap()
+}
+
+fn soc(mac: MacAddr, relative_us: u64) -> Vec<u8> {
+    let m = Message::Soc(Soc {
+        flags: Flags::empty(),
+        net_time: Default::default(),
+        relative_time: relative_us,
+        reserved1: 0,
+        reserved2: 0,
+    });
+    EplFrame::new(mac, MacAddr::BROADCAST, 255, 240, m).encode().unwrap()
+}
+
+/// Waits for a revoke on `link`; its reception time.
+fn wait_revoke(link: &dyn EthLink, buf: &mut [u8]) -> Option<Instant> {
+    let end = Instant::now() + Duration::from_millis(200);
+    while Instant::now() < end {
+        let (n, at) = link.recv(buf, Duration::from_millis(50)).unwrap()?;
+        if let Ok(f) = EplFrame::decode(&buf[..n]) {
+            if let Message::Asnd(a) = &f.message {
+                if SafetyLease::from_asnd(a).is_some_and(|l| !l.safe) {
+                    return Some(at);
+                }
+            }
+        }
+    }
+    None
+}
+
+#[test]
+fn reaction_time_over_10000_unsafe_events_on_veth() {
+    assert!(motus_epl::netns::is_root(), "needs root (namespaces, veth, AF_PACKET); CI runs as root");
+    let ns = BridgedPorts::create("react", &["stim", "sup"]).unwrap();
+    let links = ns.open(&["stim", "sup"]).unwrap();
+    let (stim, sup_link) = (Arc::clone(&links[0]), Arc::clone(&links[1]));
+
+    let rules = RuleSet::from_toml(JUGGLER_TOML).unwrap();
+    let inputs = InputMap::new(&rules, juggler::value_map(&rules), 0x10).unwrap();
+    let origin = Instant::now();
+    let target = EplLeaseTarget::new(
+        Arc::clone(&sup_link),
+        origin,
+        Duration::from_millis(20),
+        Duration::from_millis(50), // few renewals: the stimulus waits for revokes only
+        [0; 8],
+    );
+    let mut sup = OnlineSupervisor::new(
+        rules,
+        inputs,
+        vec![Box::new(target)],
+        origin,
+        OnlineConfig { restart: motus_safety::Restart::Automatic, ..OnlineConfig::default() },
+    );
+    sup.set_integrity(Ok(()));
+    let stop = Arc::new(AtomicBool::new(false));
+    let sup_thread = {
+        let stop = Arc::clone(&stop);
+        std::thread::spawn(move || {
+            // The lease check never fires while the stimulus keeps the data fresh.
+            sup.run(&*sup_link, &stop, Duration::from_millis(5), |_, _| ControlFlow::Continue(())).unwrap();
+            sup
+        })
+    };
+
+    let mac = stim.mac();
+    // Safe pose in raw units: arms -500, verticals 1000 / 10 000, thrower -7100 units (x10).
+    let safe_raw = [-500, 1000, -500, 10_000, -71_000];
+    let safe: Vec<Vec<u8>> = (1..=5u8).zip(safe_raw).map(|(n, p)| pres(mac, n, p)).collect();
+    let unsafe_pres = pres(mac, 5, 35_000); // 3500 units: beyond the thrower's 3400 limit
+    let mut buf = vec![0u8; 1518];
+    let mut end_to_end = Vec::with_capacity(EVENTS);
+    let mut missed = 0;
+    let mut relative = 0u64;
+    for _ in 0..EVENTS {
+        // A safe cycle: SoC + five PRes (the supervisor grants SafeToRun again).
+        relative += 400;
+        stim.send(&soc(mac, relative)).unwrap();
+        for f in &safe {
+            stim.send(f).unwrap();
+        }
+        std::thread::sleep(Duration::from_micros(100));
+        let t0 = Instant::now();
+        stim.send(&unsafe_pres).unwrap();
+        match wait_revoke(&*stim, &mut buf) {
+            Some(at) => end_to_end.push(u64::try_from(at.duration_since(t0).as_nanos()).unwrap()),
+            None => missed += 1,
+        }
+    }
+    stop.store(true, Ordering::Relaxed);
+    let sup = sup_thread.join().unwrap();
+    drop(ns);
+
+    let inside = sup.reaction().percentiles();
+    let e2e = Percentiles::of(&end_to_end);
+    let us = |ns: u64| ns as f64 / 1000.0;
+    eprintln!(
+        "reaction over {} events: inside Motus p50 {:.1} us p99 {:.1} us max {:.1} us; \
+         end to end (stimulus send -> revoke received) p50 {:.1} us p99 {:.1} us max {:.1} us; missed {missed}",
+        inside.count,
+        us(inside.p50),
+        us(inside.p99),
+        us(inside.max),
+        us(e2e.p50),
+        us(e2e.p99),
+        us(e2e.max),
+    );
+    assert_eq!(missed, 0, "every unsafe PRes must be answered by a revoke");
+    // One stop per unsafe event, plus the first SoC (no data yet: unsafe at start-up).
+    assert_eq!(inside.count, EVENTS + 1, "one stop per unsafe event");
+    assert_eq!(sup.stops(), EVENTS as u64 + 1);
+    // Target (acceptance 4): p99 below 1 ms.
+    assert!(inside.p99 < 1_000_000, "p99 {} ns", inside.p99);
+}
