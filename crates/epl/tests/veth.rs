@@ -30,7 +30,8 @@ fn run(label: &str, cycle: Duration, pres_timeout: Duration, max_miss: f64) {
     for l in &links {
         assert_ne!(l.mac(), mn.mac(), "{}", l.describe());
     }
-    let config = MnConfig { cycle, pres_timeout, ..MnConfig::default() };
+    let spin_for_pres = std::env::var("MOTUS_EPL_SPIN").is_ok_and(|v| v == "1");
+    let config = MnConfig { cycle, pres_timeout, spin_for_pres, ..MnConfig::default() };
     let out = common::run_scenario(label, mn, links, mon, config, common::max_miss(max_miss));
     assert!(out.monitored_cycles > 0);
     drop(ns);
