@@ -72,6 +72,11 @@ pub enum Command {
     /// Ethernet POWERLINK tools.
     #[command(subcommand)]
     Epl(crate::cli_epl::EplCommand),
+    /// G-code: check, canonical stream (diffable with LinuxCNC's rs274), plan, run.
+    #[command(subcommand)]
+    Gcode(crate::cli_cnc::GcodeCommand),
+    /// Station users (offline; passwords from standard input).
+    User(crate::cli_station::UserArgs),
 }
 
 /// `motus safety` commands.

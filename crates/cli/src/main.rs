@@ -4,7 +4,9 @@
 
 mod cli;
 mod cli_can;
+mod cli_cnc;
 mod cli_epl;
+mod cli_station;
 mod commands;
 mod hex;
 mod progress;

@@ -5,7 +5,9 @@ mod canbus;
 mod canopen;
 mod codec;
 mod demo;
+mod cnc;
 mod epl;
+mod gcode;
 mod kv01;
 mod nfv2;
 mod ps1a;
@@ -13,6 +15,7 @@ mod robot;
 mod safety;
 mod sim;
 mod sim_can;
+mod user;
 
 use crate::cli::Command;
 use anyhow::Result;
@@ -36,6 +39,8 @@ pub fn run(command: Command) -> Result<()> {
         Command::Robot(r) => robot::run(r),
         Command::Safety(c) => safety::run(c),
         Command::Epl(c) => epl::run(c),
+        Command::Gcode(c) => gcode::run(c),
+        Command::User(u) => user::run(u),
     }
 }
 

@@ -1,0 +1,62 @@
+//! Command-line definitions of the station commands (users; `serve` follows).
+
+use clap::{Args, Subcommand, ValueEnum};
+use std::path::PathBuf;
+
+/// Options of `motus user`.
+#[derive(Debug, Args)]
+pub struct UserArgs {
+    /// The station's database (default: `<config stem>.lab.sqlite` beside `--config`).
+    #[arg(long, global = true)]
+    pub db: Option<PathBuf>,
+    /// The cell configuration whose database to use.
+    #[arg(long, global = true)]
+    pub config: Option<PathBuf>,
+    /// What to do.
+    #[command(subcommand)]
+    pub action: UserAction,
+}
+
+/// Roles on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RoleArg {
+    /// Sees everything, commands nothing.
+    Viewer,
+    /// Commands during their own reserved slot, within student limits.
+    Student,
+    /// Everything, including safety configuration and users.
+    Admin,
+}
+
+/// `motus user` actions (offline: the station may be stopped).
+#[derive(Debug, Subcommand)]
+pub enum UserAction {
+    /// Add a user; the password is read from standard input (one line).
+    Add {
+        /// User name.
+        name: String,
+        /// Role.
+        #[arg(long, value_enum, default_value = "student")]
+        role: RoleArg,
+    },
+    /// Set a user's password (read from standard input); ends the user's sessions.
+    Passwd {
+        /// User name.
+        name: String,
+    },
+    /// Change a user's role.
+    Role {
+        /// User name.
+        name: String,
+        /// New role.
+        #[arg(value_enum)]
+        role: RoleArg,
+    },
+    /// Delete a user.
+    Del {
+        /// User name.
+        name: String,
+    },
+    /// List users.
+    List,
+}

@@ -1,0 +1,282 @@
+//! Canonical machining calls, named and ordered like LinuxCNC's canonical interface.
+//!
+//! Values are what LinuxCNC's standalone `rs274` prints: lengths in the **program units
+//! in force** (mm after G21, inch after G20), absolute, in the program coordinate system
+//! (G5x / G92 offsets are *not* applied; they arrive as [`Canon::SetG5xOffset`] and
+//! [`Canon::SetG92Offset`]). Angles (A, B, C) are degrees. For motion, every
+//! [`CanonCall`] also carries a [`MachineMove`] in machine millimetres (units converted,
+//! offsets applied) for a planner.
+
+use serde::{Deserialize, Serialize};
+
+/// Length units (`USE_LENGTH_UNITS`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Units {
+    /// G21.
+    Mm,
+    /// G20.
+    Inch,
+}
+
+impl Units {
+    /// Millimetres per unit (1 or 25.4).
+    pub fn mm_per_unit(self) -> f64 {
+        match self {
+            Units::Mm => 1.0,
+            Units::Inch => 25.4,
+        }
+    }
+}
+
+/// Active plane (`SELECT_PLANE`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Plane {
+    /// G17: arcs in X,Y about Z.
+    Xy,
+    /// G18: arcs in Z,X about Y (LinuxCNC's first/second order is Z then X).
+    Xz,
+    /// G19: arcs in Y,Z about X.
+    Yz,
+}
+
+impl Plane {
+    /// Indices (0 = X, 1 = Y, 2 = Z) of the arc's first and second coordinate and its axis,
+    /// in LinuxCNC's order (G18 is Z, X, axis Y).
+    pub fn axes(self) -> (usize, usize, usize) {
+        match self {
+            Plane::Xy => (0, 1, 2),
+            Plane::Xz => (2, 0, 1),
+            Plane::Yz => (1, 2, 0),
+        }
+    }
+}
+
+/// Whether an M-function pauses the program until the PLC clears its bit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MSync {
+    /// The program waits until the PLC clears the bit.
+    Sync,
+    /// The program continues; the same M may only be set again once it was cleared.
+    Async,
+}
+
+/// The four external-parameter arrays (`EXB`, `EXW`, `EXL`, `EXF`, 100 entries each).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ExArray {
+    /// int8.
+    B,
+    /// int16.
+    W,
+    /// int32.
+    L,
+    /// float32.
+    F,
+}
+
+/// A value written to an external parameter, typed like its array.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", content = "value", rename_all = "snake_case")]
+pub enum ExValue {
+    /// EXB value.
+    B(i8),
+    /// EXW value.
+    W(i16),
+    /// EXL value.
+    L(i32),
+    /// EXF value.
+    F(f32),
+}
+
+/// Six-axis position X, Y, Z (program length units), A, B, C (degrees).
+pub type Pose = [f64; 6];
+
+/// An `ARC_FEED` in LinuxCNC's argument order.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ArcFeed {
+    /// End point, first coordinate of the plane (X for G17, Z for G18, Y for G19).
+    pub first_end: f64,
+    /// End point, second coordinate of the plane.
+    pub second_end: f64,
+    /// Centre, first coordinate (absolute).
+    pub first_centre: f64,
+    /// Centre, second coordinate (absolute).
+    pub second_centre: f64,
+    /// Negative for G2 (clockwise), positive for G3; magnitude = turns (P word).
+    pub rotation: i32,
+    /// End point along the plane's normal axis (helix).
+    pub axis_end: f64,
+    /// A end (degrees).
+    pub a: f64,
+    /// B end (degrees).
+    pub b: f64,
+    /// C end (degrees).
+    pub c: f64,
+}
+
+/// One canonical call.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "call", rename_all = "snake_case")]
+pub enum Canon {
+    /// `USE_LENGTH_UNITS(CANON_UNITS_MM|CANON_UNITS_INCHES)`.
+    UseLengthUnits {
+        /// The units now in force.
+        units: Units,
+    },
+    /// `SET_G5X_OFFSET(index, x, y, z, a, b, c)`: the active work offset (1 = G54 .. 9 = G59.3), program units.
+    SetG5xOffset {
+        /// 1..=9.
+        index: u8,
+        /// Offset per axis.
+        offset: Pose,
+    },
+    /// `SET_G92_OFFSET(x, y, z, a, b, c)`, program units.
+    SetG92Offset {
+        /// Offset per axis.
+        offset: Pose,
+    },
+    /// `SET_XY_ROTATION(degrees)` (always 0 here: rotation is not implemented).
+    SetXyRotation {
+        /// Degrees.
+        degrees: f64,
+    },
+    /// `SET_FEED_REFERENCE(CANON_XYZ)`.
+    SetFeedReference,
+    /// `SET_FEED_MODE(0, 0)`: units per minute (G94).
+    SetFeedMode,
+    /// `SET_FEED_RATE(f)`, program units per minute.
+    SetFeedRate {
+        /// Feed rate.
+        rate: f64,
+    },
+    /// `SET_SPINDLE_SPEED(0, s)`, rpm.
+    SetSpindleSpeed {
+        /// Speed (rpm).
+        rpm: f64,
+    },
+    /// `START_SPINDLE_CLOCKWISE(0)` (M3).
+    StartSpindleClockwise,
+    /// `START_SPINDLE_COUNTERCLOCKWISE(0)` (M4).
+    StartSpindleCounterclockwise,
+    /// `STOP_SPINDLE_TURNING(0)` (M5).
+    StopSpindleTurning,
+    /// `SET_SPINDLE_MODE(0 0.0000)` (emitted by the program-end reset).
+    SetSpindleMode,
+    /// `MIST_ON()` (M7).
+    MistOn,
+    /// `FLOOD_ON()` (M8).
+    FloodOn,
+    /// `MIST_OFF()` (M9, first call).
+    MistOff,
+    /// `FLOOD_OFF()` (M9, second call).
+    FloodOff,
+    /// `SELECT_PLANE(...)`.
+    SelectPlane {
+        /// The plane.
+        plane: Plane,
+    },
+    /// `COMMENT("...")`.
+    Comment {
+        /// The text between the parentheses.
+        text: String,
+    },
+    /// `MESSAGE("...")` from `(MSG,...)`.
+    Message {
+        /// The text after `MSG,`.
+        text: String,
+    },
+    /// `STRAIGHT_TRAVERSE(x, y, z, a, b, c)` (G0).
+    StraightTraverse {
+        /// End point.
+        end: Pose,
+    },
+    /// `STRAIGHT_FEED(x, y, z, a, b, c)` (G1).
+    StraightFeed {
+        /// End point.
+        end: Pose,
+    },
+    /// `ARC_FEED(...)` (G2/G3).
+    ArcFeed(ArcFeed),
+    /// `DWELL(seconds)` (G4).
+    Dwell {
+        /// Seconds.
+        seconds: f64,
+    },
+    /// `OPTIONAL_PROGRAM_STOP()` (M1).
+    OptionalProgramStop,
+    /// `PROGRAM_STOP()` (M0).
+    ProgramStop,
+    /// `PALLET_SHUTTLE()` (M30, before `PROGRAM_END`).
+    PalletShuttle,
+    /// `PROGRAM_END()` (M2/M30).
+    ProgramEnd,
+    /// `M_FUNCTION(n, SYNC|ASYNC)`: one of the seed's M-functions 0..=1023 (bit n).
+    MFunction {
+        /// 0..=1023.
+        number: u16,
+        /// Whether the program waits for the PLC.
+        sync: MSync,
+    },
+    /// `EXTERNAL_PARAMETER(W, 60, 3600)`: `EX<array><index>=value`.
+    ExternalParameter {
+        /// Which array.
+        array: ExArray,
+        /// 0..=99.
+        index: u8,
+        /// The typed value.
+        value: ExValue,
+    },
+}
+
+/// A motion in machine coordinates: millimetres (A/B/C degrees), G5x and G92 offsets applied.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum MachineMove {
+    /// Rapid move (G0).
+    Traverse {
+        /// Start (machine mm).
+        start: Pose,
+        /// End (machine mm).
+        end: Pose,
+    },
+    /// Straight feed move (G1).
+    Feed {
+        /// Start (machine mm).
+        start: Pose,
+        /// End (machine mm).
+        end: Pose,
+        /// Feed rate in mm/min.
+        feed: f64,
+    },
+    /// Arc / helix (G2/G3).
+    Arc {
+        /// Start (machine mm).
+        start: Pose,
+        /// End (machine mm).
+        end: Pose,
+        /// Centre X, Y, Z (machine mm); the component along the plane's axis is the start's.
+        centre: [f64; 3],
+        /// Plane of the arc.
+        plane: Plane,
+        /// Negative = clockwise (G2) seen from the positive normal axis, magnitude = turns.
+        rotation: i32,
+        /// Feed rate in mm/min.
+        feed: f64,
+    },
+}
+
+/// A canonical call with where it came from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CanonCall {
+    /// 1-based source line (0 for the set-up calls emitted before the first line).
+    pub line: u32,
+    /// The block's N number, if any.
+    pub n: Option<u32>,
+    /// The call.
+    pub canon: Canon,
+    /// For motion calls: the same motion in machine millimetres.
+    pub machine: Option<MachineMove>,
+}

@@ -1,0 +1,201 @@
+//! Errors: every error names the 1-based source line and column where it was found.
+
+use std::fmt;
+
+/// What was wrong (the message follows LinuxCNC's wording where LinuxCNC has one).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ErrorKind {
+    /// A `(` inside a comment (LinuxCNC: "Nested comment found").
+    #[error("Nested comment found")]
+    NestedComment,
+    /// A `(` comment without its `)`.
+    #[error("Unclosed comment found")]
+    UnclosedComment,
+    /// A character that starts no word.
+    #[error("Bad character used: '{0}'")]
+    BadCharacter(char),
+    /// A word letter this interpreter does not implement.
+    #[error("Unsupported word letter: '{0}'")]
+    UnsupportedLetter(char),
+    /// A number could not be read.
+    #[error("Bad number format")]
+    BadNumber,
+    /// The line ended where a value was expected.
+    #[error("Missing value after '{0}'")]
+    MissingValue(char),
+    /// A malformed expression (`[..]`).
+    #[error("Bad expression: {0}")]
+    BadExpression(&'static str),
+    /// A name that is no function or operator.
+    #[error("Unknown operation or function: {0}")]
+    UnknownOperation(String),
+    /// A function argument outside its domain (SQRT of a negative number, ...).
+    #[error("Argument out of range for {0}")]
+    FunctionDomain(&'static str),
+    /// Division (or MOD) by zero.
+    #[error("Attempt to divide by zero")]
+    DivideByZero,
+    /// A numbered parameter outside 1..=5602.
+    #[error("Parameter number out of range: {0}")]
+    ParameterOutOfRange(f64),
+    /// A named parameter read before it was set.
+    #[error("Named parameter #<{0}> not defined")]
+    UndefinedNamedParameter(String),
+    /// A value that must be an integer is not one.
+    #[error("Non-integer value for integer: {0}")]
+    NonInteger(f64),
+    /// A word given twice in one block.
+    #[error("Multiple {0} words on one line")]
+    DuplicateWord(char),
+    /// Two G codes of the same modal group in one block.
+    #[error("Two g codes used from same modal group")]
+    GModalConflict,
+    /// Two M codes of the same modal group in one block.
+    #[error("Two m codes used from same modal group")]
+    MModalConflict,
+    /// A G code this interpreter does not implement.
+    #[error("Unknown or unsupported g code used: G{0}")]
+    UnsupportedG(f64),
+    /// An M number outside 0..=1023.
+    #[error("Unknown m code used: M{0}")]
+    UnsupportedM(f64),
+    /// Axis words without a motion (or G10/G92/G53) to use them.
+    #[error("Cannot use axis values without a g code that uses them")]
+    AxisWithoutMotion,
+    /// Motion with the feed rate still zero.
+    #[error("Cannot do g{0} with zero feed rate")]
+    ZeroFeed(u8),
+    /// A G0/G1 with no axis word.
+    #[error("All axes missing with motion code")]
+    AllAxesMissing,
+    /// G2/G3 with neither R nor a centre word.
+    #[error("R, I, J, or K words missing for arc")]
+    ArcMissingCentre,
+    /// G2/G3 with both R and centre words.
+    #[error("Mixed radius-ijk format for arc")]
+    ArcMixedFormat,
+    /// A centre word that does not belong to the selected plane.
+    #[error("{0} word given for arc in {1} plane")]
+    ArcWrongCentreWord(char, &'static str),
+    /// The arc's end radius differs from its start radius (LinuxCNC's rule).
+    #[error("Radius to end of arc differs from radius to start: r1={r1:.4} r2={r2:.4} abs_err={abs_err:.4} rel_err={rel_err:.4}%")]
+    ArcRadiusMismatch {
+        /// Radius from the centre to the start point.
+        r1: f64,
+        /// Radius from the centre to the end point.
+        r2: f64,
+        /// |r1 - r2|.
+        abs_err: f64,
+        /// |r1 - r2| / r1 * 100.
+        rel_err: f64,
+    },
+    /// An arc with (near) zero radius.
+    #[error("Zero-radius arc")]
+    ZeroRadiusArc,
+    /// R-form arc with the end point equal to the start point.
+    #[error("Current point same as end point of arc")]
+    ArcSameEndPoint,
+    /// R-form arc whose radius cannot reach the end point.
+    #[error("Arc radius too small to reach end point")]
+    ArcRadiusTooSmall,
+    /// G2/G3 P word that is not a positive integer.
+    #[error("P value not an integer or less than one with G2/G3")]
+    ArcBadTurns,
+    /// G4 without P.
+    #[error("Dwell time missing with g4")]
+    DwellMissing,
+    /// A negative dwell.
+    #[error("Negative P word used with g4")]
+    NegativeDwell,
+    /// G53 in incremental mode.
+    #[error("Cannot use g53 incremental")]
+    G53Incremental,
+    /// G53 with something other than G0/G1.
+    #[error("Must use g0 or g1 with g53")]
+    G53WithoutStraight,
+    /// G10 with a bad or missing L/P.
+    #[error("Invalid G10 use: {0}")]
+    BadG10(&'static str),
+    /// G92 without an axis word.
+    #[error("All axes missing with g92")]
+    G92NoAxes,
+    /// Axis and G10/G92 in one block, or two axis-word users.
+    #[error("Cannot use two g codes that both use axis values")]
+    TwoAxisUsers,
+    /// A negative feed rate.
+    #[error("Negative f word used")]
+    NegativeFeed,
+    /// A negative spindle speed.
+    #[error("Negative spindle speed used")]
+    NegativeSpindle,
+    /// Inverse-time or per-revolution feed (not implemented).
+    #[error("Feed mode G{0} is not supported")]
+    UnsupportedFeedMode(f64),
+    /// An O-word problem (unknown keyword, unmatched structure, ...).
+    #[error("O-word error: {0}")]
+    OWord(String),
+    /// A `call` of a subroutine that is never defined.
+    #[error("Unknown subroutine: o{0}")]
+    UnknownSub(String),
+    /// Subroutine calls nested too deep.
+    #[error("Too many nested subroutine calls (limit {0})")]
+    CallDepth(usize),
+    /// The configured limit on executed lines was reached (endless loop guard).
+    #[error("Too many lines executed (limit {0}); endless loop?")]
+    StepLimit(u64),
+    /// An EX external parameter word is malformed.
+    #[error("Bad external parameter: {0}")]
+    BadExternal(&'static str),
+    /// An EX value does not fit the array's type.
+    #[error("External parameter value {value} out of range for EX{array}")]
+    ExternalRange {
+        /// Array letter (B, W, L, F).
+        array: char,
+        /// The value given.
+        value: f64,
+    },
+    /// The program ended without M2/M30 or a closing `%`.
+    #[error("File ended with no percent sign or program end")]
+    NoProgramEnd,
+}
+
+/// An interpreter error with the 1-based line and column of its source.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GcodeError {
+    /// 1-based line number in the program text.
+    pub line: u32,
+    /// 1-based column (in characters) where the offending item starts.
+    pub column: u32,
+    /// What went wrong.
+    pub kind: ErrorKind,
+    /// Optional file name shown in front of the position by `Display`.
+    pub file: Option<String>,
+}
+
+impl GcodeError {
+    /// A new error at `line:column`.
+    pub fn new(line: u32, column: u32, kind: ErrorKind) -> Self {
+        Self { line, column, kind, file: None }
+    }
+
+    /// The same error, displayed as `file:line:column: message`.
+    #[must_use]
+    pub fn with_file(mut self, file: impl Into<String>) -> Self {
+        self.file = Some(file.into());
+        self
+    }
+}
+
+impl fmt::Display for GcodeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Some(file) = &self.file {
+            write!(f, "{file}:")?;
+        }
+        write!(f, "{}:{}: {}", self.line, self.column, self.kind)
+    }
+}
+
+impl std::error::Error for GcodeError {}
+
+/// An error without position yet (filled in by the caller that knows the column).
+pub(crate) type KResult<T> = Result<T, (u32, ErrorKind)>;

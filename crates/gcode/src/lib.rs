@@ -1,0 +1,34 @@
+//! Sans-IO RS274/NGC G-code interpreter (LinuxCNC dialect) producing canonical calls.
+//!
+//! ```
+//! use motus_gcode::{interpret, format_canon, Precision};
+//! let calls = interpret("G21 G90\nG1 X10 Y5 F100\nM2\n").unwrap();
+//! let text: Vec<String> = calls.iter().map(|c| format_canon(&c.canon, Precision::Full)).collect();
+//! assert!(text.contains(&"STRAIGHT_FEED(10, 5, 0, 0, 0, 0)".to_string()));
+//! ```
+//!
+//! * Dialect: LinuxCNC's `rs274` is the reference (see `tests/rs274_oracle.rs`); the
+//!   canonical stream uses its call names, argument order and coordinate conventions
+//!   (see [`canon`]). Differences: interpreter-generated `COMMENT("interpreter: ...")`
+//!   lines and `ON_RESET()` are not emitted; unsupported codes (cutter compensation,
+//!   tool length offsets, canned cycles, G93/G95, XY rotation, U/V/W) are errors.
+//! * Seed additions: every M number 0..=1023 other than M0-M5, M7-M9, M30 is an
+//!   M-function ([`Canon::MFunction`], synchronous unless listed in
+//!   [`InterpreterConfig::async_m_functions`]), executed before the block's motion;
+//!   `EX<B|W|L|F><0..99>=value` writes an external parameter ([`Canon::ExternalParameter`]),
+//!   executed right after the block's comment, before its M-functions.
+#![forbid(unsafe_code)]
+
+mod arc;
+mod block;
+pub mod canon;
+pub mod error;
+mod expr;
+pub mod format;
+mod interp;
+mod parse;
+
+pub use canon::{ArcFeed, Canon, CanonCall, ExArray, ExValue, MSync, MachineMove, Plane, Pose, Units};
+pub use error::{ErrorKind, GcodeError};
+pub use format::{format_canon, format_line, Precision};
+pub use interp::{interpret, interpret_with, Interpreter, InterpreterConfig};

@@ -1,0 +1,123 @@
+//! The seed's additions (M-functions, EX parameters), machine-mm moves, streaming and
+//! error positions; expected values worked out by hand from specs/cnc.md and the rules
+//! in the crate docs.
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+
+use motus_gcode::{
+    format_canon, interpret, interpret_with, Canon, ErrorKind, Interpreter, InterpreterConfig, MachineMove,
+    Precision,
+};
+
+fn text(src: &str, cfg: InterpreterConfig) -> Vec<String> {
+    interpret_with(src, cfg)
+        .unwrap()
+        .iter()
+        .skip(5) // the set-up calls
+        .map(|c| format_canon(&c.canon, Precision::Full))
+        .collect()
+}
+
+#[test]
+fn seed_example_program() {
+    // The example of specs/cnc.md, with M2 added.
+    let src = "N001 M63\nN005 G00 X100 Y100 F300\nN010 EXW60=3600 EXF61=100\nN020 M60\n\
+               N030 G01 X110 Y110\nN040 M60\nN060 EXW60=1800 EXF61=60 EXF62=50.5\nN070 M60\nM2\n";
+    let cfg = InterpreterConfig { async_m_functions: vec![63], ..InterpreterConfig::default() };
+    let t = text(src, cfg);
+    assert_eq!(
+        &t[..9],
+        &[
+            "M_FUNCTION(63, ASYNC)",
+            "SET_FEED_RATE(300)",
+            "STRAIGHT_TRAVERSE(100, 100, 0, 0, 0, 0)",
+            "EXTERNAL_PARAMETER(W, 60, 3600)",
+            "EXTERNAL_PARAMETER(F, 61, 100)",
+            "M_FUNCTION(60, SYNC)",
+            "STRAIGHT_FEED(110, 110, 0, 0, 0, 0)",
+            "M_FUNCTION(60, SYNC)",
+            "EXTERNAL_PARAMETER(W, 60, 1800)",
+        ]
+    );
+    assert!(t.contains(&"EXTERNAL_PARAMETER(F, 62, 50.5)".to_string()));
+}
+
+#[test]
+fn m_function_runs_before_motion_of_its_block() {
+    let t = text("G1 X1 F10 M61\nM2\n", InterpreterConfig::default());
+    assert_eq!(t[..3], ["SET_FEED_RATE(10)", "M_FUNCTION(61, SYNC)", "STRAIGHT_FEED(1, 0, 0, 0, 0, 0)"]);
+}
+
+#[test]
+fn ex_range_checks() {
+    let e = interpret("EXB1=200\nM2\n").unwrap_err();
+    assert_eq!((e.line, e.column), (1, 1));
+    assert!(matches!(e.kind, ErrorKind::ExternalRange { array: 'B', .. }));
+    let e = interpret("G0 X1\nEXW100=1\nM2\n").unwrap_err();
+    assert_eq!(e.line, 2);
+    assert!(interpret("EXL5=-2147483648 EXB0=-128\nM2\n").is_ok());
+}
+
+#[test]
+fn machine_moves_are_mm_with_offsets() {
+    // G20: X1 inch = 25.4 mm; G92 shifts by 2 inch in X: machine = (prog + g92) * 25.4.
+    let calls = interpret("G20 G0 X1 Y0\nG92 X0\nG1 X1 F10\nG2 X3 Y0 I1 J0\nM2\n").unwrap();
+    let moves: Vec<MachineMove> = calls.iter().filter_map(|c| c.machine).collect();
+    match moves[1] {
+        MachineMove::Feed { start, end, feed } => {
+            assert!((start[0] - 25.4).abs() < 1e-12);
+            assert!((end[0] - 50.8).abs() < 1e-12);
+            assert!((feed - 254.0).abs() < 1e-12);
+        }
+        m => panic!("{m:?}"),
+    }
+    match moves[2] {
+        MachineMove::Arc { centre, end, rotation, .. } => {
+            assert!((centre[0] - 76.2).abs() < 1e-12, "{centre:?}");
+            assert!((end[0] - 101.6).abs() < 1e-12);
+            assert_eq!(rotation, -1);
+        }
+        m => panic!("{m:?}"),
+    }
+}
+
+#[test]
+fn streaming_yields_before_the_error() {
+    let mut it = Interpreter::new("G0 X1\nG0 X2\nG1 X3\nM2\n");
+    let mut ok = 0;
+    let err = loop {
+        match it.next().unwrap() {
+            Ok(_) => ok += 1,
+            Err(e) => break e,
+        }
+    };
+    assert_eq!(ok, 5 + 2);
+    assert_eq!((err.line, err.column), (3, 1));
+    assert_eq!(err.to_string(), "3:1: Cannot do g1 with zero feed rate");
+    assert_eq!(err.with_file("prog.ngc").to_string(), "prog.ngc:3:1: Cannot do g1 with zero feed rate");
+    assert!(it.next().is_none());
+}
+
+#[test]
+fn error_columns() {
+    let e = interpret("G0 X1 (a (b))\nM2\n").unwrap_err();
+    assert_eq!((e.line, e.column, e.kind), (1, 10, ErrorKind::NestedComment));
+    let e = interpret("G0 X1\n  G1 X[1/0]\nM2\n").unwrap_err();
+    assert_eq!((e.line, e.column, e.kind), (2, 6, ErrorKind::DivideByZero));
+}
+
+#[test]
+fn endless_loop_is_caught() {
+    let cfg = InterpreterConfig { max_steps: 1000, ..InterpreterConfig::default() };
+    let e = interpret_with("o1 while [1]\no1 endwhile\nM2\n", cfg).unwrap_err();
+    assert!(matches!(e.kind, ErrorKind::StepLimit(1000)));
+}
+
+#[test]
+fn program_end_optional() {
+    let cfg = InterpreterConfig { require_program_end: false, ..InterpreterConfig::default() };
+    let calls = interpret_with("G0 X1\n", cfg).unwrap();
+    assert!(matches!(calls.last().unwrap().canon, Canon::StraightTraverse { .. }));
+    assert!(interpret("G0 X1\n").is_err());
+    // % delimited program: ends at the second %.
+    assert!(interpret("%\nG0 X1\n%\nthis is not parsed\n").is_ok());
+}
