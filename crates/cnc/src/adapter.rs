@@ -24,7 +24,9 @@ pub fn item(call: &CanonCall) -> Option<PathItem<AXES>> {
     if let Some(m) = &call.machine {
         return Some(PathItem::Motion(match m {
             MachineMove::Traverse { end, .. } => Segment::Line { end: xyz(end), feed: 0.0, rapid: true },
-            MachineMove::Feed { end, feed, .. } => Segment::Line { end: xyz(end), feed: feed / 60.0, rapid: false },
+            MachineMove::Feed { end, feed, .. } => {
+                Segment::Line { end: xyz(end), feed: feed / 60.0, rapid: false }
+            }
             MachineMove::Arc { end, centre, plane: p, rotation, feed, .. } => {
                 let pl = plane(*p);
                 let (a, b, _) = pl.axes();
@@ -33,7 +35,11 @@ pub fn item(call: &CanonCall) -> Option<PathItem<AXES>> {
                     end: xyz(end),
                     centre: c,
                     plane: pl,
-                    direction: if *rotation < 0 { ArcDirection::Clockwise } else { ArcDirection::CounterClockwise },
+                    direction: if *rotation < 0 {
+                        ArcDirection::Clockwise
+                    } else {
+                        ArcDirection::CounterClockwise
+                    },
                     extra_turns: rotation.unsigned_abs().saturating_sub(1),
                     feed: feed / 60.0,
                 }
@@ -41,7 +47,9 @@ pub fn item(call: &CanonCall) -> Option<PathItem<AXES>> {
         }));
     }
     match &call.canon {
-        Canon::MFunction { number, sync } => Some(PathItem::MFunction { number: *number, sync: *sync == MSync::Sync }),
+        Canon::MFunction { number, sync } => {
+            Some(PathItem::MFunction { number: *number, sync: *sync == MSync::Sync })
+        }
         Canon::ExternalParameter { array, index, value } => {
             let _ = array; // the value's type names the array
             let (array, value) = match value {

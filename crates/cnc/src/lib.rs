@@ -8,15 +8,19 @@
 //! * [`runner`]: [`runner::ProgramRun`], one CNC system stepped cycle by cycle (time passed in),
 //!   with progress, feed hold / resume / stop / override / single block, and per-axis peak
 //!   velocity and acceleration measured on the executed set-points.
+//! * [`service`]: [`service::ProgramService`], programs run in real time on a thread (hold,
+//!   resume, stop, status) for the station.
 //! * [`technology`]: the [`Technology`] trait and [`technology::DrillingTechnology`].
 
 #![forbid(unsafe_code)]
 
 pub mod adapter;
 pub mod runner;
+pub mod service;
 pub mod technology;
 
 pub use runner::{Limits3, ProgramRun, RunError, RunReport, RunStatus};
+pub use service::{ProgramService, ServiceState, ServiceStatus};
 pub use technology::{DrillingTechnology, NoTechnology, Technology, TechnologyError};
 
 /// Number of CNC axes planned (X, Y, Z).

@@ -127,6 +127,7 @@ pub struct ProgramRun<'a> {
     last_velocity: Option<[f64; AXES]>,
     waiting: Option<u16>,
     failed: bool,
+    stopped: bool,
 }
 
 impl<'a> ProgramRun<'a> {
@@ -144,16 +145,21 @@ impl<'a> ProgramRun<'a> {
         cfg.path_tolerance = limits.path_tolerance;
         cfg.chord_tolerance = limits.chord_tolerance;
         cfg.buffer_capacity = 20_000;
-        let exec = Executor::new(cfg, start).map_err(|e| RunError::Planner { line: 0, message: e.to_string() })?;
+        let exec =
+            Executor::new(cfg, start).map_err(|e| RunError::Planner { line: 0, message: e.to_string() })?;
         Ok(Self {
             interp: Interpreter::with_config(src, config),
             exec,
             pending: None,
             decoded_all: false,
-            report: RunReport { lines: u32::try_from(src.lines().count()).unwrap_or(u32::MAX), ..Default::default() },
+            report: RunReport {
+                lines: u32::try_from(src.lines().count()).unwrap_or(u32::MAX),
+                ..Default::default()
+            },
             last_velocity: None,
             waiting: None,
             failed: false,
+            stopped: false,
         })
     }
 
@@ -174,11 +180,14 @@ impl<'a> ProgramRun<'a> {
 
     /// Resume after a feed hold or a single-block stop.
     pub fn resume(&mut self) -> Result<(), RunError> {
-        self.exec.cycle_start().map_err(|e| RunError::Planner { line: self.report.line, message: e.to_string() })
+        self.exec
+            .cycle_start()
+            .map_err(|e| RunError::Planner { line: self.report.line, message: e.to_string() })
     }
 
     /// Stop: decelerate within the limits, then flush the program.
     pub fn stop(&mut self) {
+        self.stopped = true;
         self.exec.stop();
         self.decoded_all = true;
         self.pending = None;
@@ -229,7 +238,11 @@ impl<'a> ProgramRun<'a> {
     }
 
     /// One cycle of `dt` seconds: returns the set-point and the run status.
-    pub fn step(&mut self, dt: f64, tech: &mut dyn Technology) -> Result<(Setpoint<AXES>, RunStatus), RunError> {
+    pub fn step(
+        &mut self,
+        dt: f64,
+        tech: &mut dyn Technology,
+    ) -> Result<(Setpoint<AXES>, RunStatus), RunError> {
         if let Err(e) = self.decode() {
             // An invalid line ahead: stop the path before it, within the limits.
             self.exec.stop();
@@ -289,8 +302,10 @@ impl<'a> ProgramRun<'a> {
             ExecState::Holding | ExecState::Held => RunStatus::Held,
             ExecState::BlockStop => RunStatus::BlockStop,
             ExecState::Stopping => RunStatus::Stopped,
-            ExecState::Idle if self.failed => RunStatus::Stopped,
-            ExecState::Idle if self.decoded_all && self.pending.is_none() && !self.exec.planner().has_pending() => {
+            ExecState::Idle if self.failed || self.stopped => RunStatus::Stopped,
+            ExecState::Idle
+                if self.decoded_all && self.pending.is_none() && !self.exec.planner().has_pending() =>
+            {
                 RunStatus::Done
             }
             _ => RunStatus::Running,

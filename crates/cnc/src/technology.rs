@@ -52,9 +52,7 @@ pub struct DrillingTechnology {
 impl DrillingTechnology {
     /// The drilling unit with default parameters on the default simulated machine.
     pub fn simulated() -> Self {
-        Self {
-            cell: DrillingCell::new(Default::default(), Default::default(), Default::default()),
-        }
+        Self { cell: DrillingCell::new(Default::default(), Default::default(), Default::default()) }
     }
 
     /// Holes drilled so far.
@@ -84,7 +82,10 @@ impl Technology for DrillingTechnology {
             ExArray::L => ExtType::L,
             ExArray::F => ExtType::F,
         };
-        self.cell.set_external(ty, usize::from(index), value).map(|_| ()).map_err(|e| TechnologyError(e.to_string()))
+        self.cell
+            .set_external(ty, usize::from(index), value)
+            .map(|_| ())
+            .map_err(|e| TechnologyError(e.to_string()))
     }
 
     fn cycle(&mut self, dt: f64, program_xy: [f64; 2]) -> Result<Vec<u16>, TechnologyError> {
