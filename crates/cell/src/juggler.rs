@@ -1,0 +1,500 @@
+//! The juggler on POWERLINK: the simulated segment over UDP (`motus sim epl`: MN + one
+//! drive CN per rules axis, needing the safety lease), the online supervisor on its own
+//! thread (`motus safety run`; integrity checked when the cell names an approval and a key,
+//! else as with `--no-integrity`), a passive [`Monitor`] feeding read-only axes, and the
+//! shared [`SupervisorSnapshot`].
+
+use std::collections::BTreeMap;
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{channel, Receiver, Sender};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use motus_axis::{Axis, AxisCommand, AxisError, AxisFlags, AxisState, Capabilities, Fault, FaultKind, Scale};
+use motus_epl::sim::pdo::{
+    PRES_POSITION_OFFSET, PRES_SPEED_OFFSET, STATUS_ENABLED, STATUS_HOMED, STATUS_LEASE_STOP,
+};
+use motus_epl::sim::{MnConfig, Segment};
+use motus_epl::{open_link, Monitor, MonitorConfig};
+use motus_epl_protocol::{NodeValues, Value, ValueMap, ValueSpec, ValueType};
+use motus_safety::predict::Reach;
+use motus_safety::{secret_hash, Approval, Integrity, Mode, RuleSet, Sample, Snapshot};
+use motus_safety_epl::juggler;
+use motus_safety_epl::{EplLeaseTarget, InputMap, OnlineConfig, OnlineEvent, OnlineSupervisor};
+use motus_station::config::{AxisConfig, Supervisor};
+use motus_station::devices::DeviceError;
+
+use crate::sim::SimControl;
+use crate::{CellError, CellOptions, DeviceCtl};
+
+/// PRes older than this: the drive counts as lost.
+const STALE: Duration = Duration::from_millis(250);
+
+/// The supervisor's latest state, as the station shows it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SupervisorSnapshot {
+    /// SafeToRun (`None` before the first evaluation).
+    pub safe_to_run: Option<bool>,
+    /// Stopped and waiting for [`JugglerHandle::reset`] (manual restart).
+    pub held: bool,
+    /// Why SafeToRun fell last (first failing rule, stale data, integrity).
+    pub diagnosis: Option<String>,
+    /// `Err` names what is wrong with the configuration's integrity (approval, key, changes).
+    pub integrity: Result<(), String>,
+    /// Integrity is not checked (no approval or key in the cell file).
+    pub integrity_disabled: bool,
+    /// Reachable ranges per rules axis (name, reach), rules order.
+    pub reaches: Vec<(String, Reach)>,
+    /// Latest sample per rules axis (name, sample in rules units).
+    pub samples: Vec<(String, Option<Sample>)>,
+    /// Frames processed.
+    pub frames: u64,
+    /// Times the drives were stopped.
+    pub stops: u64,
+    /// SafeToRun became true this many times.
+    pub safe_events: u64,
+    /// SafeToRun fell this many times.
+    pub unsafe_events: u64,
+}
+
+impl Default for SupervisorSnapshot {
+    fn default() -> Self {
+        Self {
+            safe_to_run: None,
+            held: false,
+            diagnosis: None,
+            integrity: Err("configuration integrity not checked yet".into()),
+            integrity_disabled: false,
+            reaches: Vec::new(),
+            samples: Vec::new(),
+            frames: 0,
+            stops: 0,
+            safe_events: 0,
+            unsafe_events: 0,
+        }
+    }
+}
+
+/// Operator commands to the supervisor thread.
+enum Op {
+    StopAll,
+    Reset,
+}
+
+/// What the monitor last saw of one node.
+#[derive(Debug, Clone, Copy)]
+struct NodeView {
+    position: i32,
+    speed: i32,
+    status: u16,
+    at: Instant,
+}
+
+type Views = Arc<Mutex<BTreeMap<u8, NodeView>>>;
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// The supervisor, the monitor and their shared state.
+pub struct JugglerHandle {
+    snapshot: Arc<Mutex<SupervisorSnapshot>>,
+    ops: Mutex<Sender<Op>>,
+    views: Views,
+    stop: Arc<AtomicBool>,
+    threads: Mutex<Vec<JoinHandle<()>>>,
+}
+
+impl std::fmt::Debug for JugglerHandle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("JugglerHandle").field("snapshot", &self.snapshot()).finish()
+    }
+}
+
+impl JugglerHandle {
+    /// The supervisor's latest state.
+    pub fn snapshot(&self) -> SupervisorSnapshot {
+        lock(&self.snapshot).clone()
+    }
+
+    /// Operator stop: revokes the safety lease (every juggler drive quick-stops).
+    pub fn stop_all(&self) {
+        let _ = lock(&self.ops).send(Op::StopAll);
+    }
+
+    /// Operator reset after a stop (manual restart).
+    pub fn reset(&self) {
+        let _ = lock(&self.ops).send(Op::Reset);
+    }
+
+    /// Stops the supervisor and monitor threads.
+    pub(crate) fn shutdown(&self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for t in lock(&self.threads).drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Reads the rules file.
+pub(crate) fn read_rules(path: &Path) -> Result<RuleSet, CellError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| CellError::Config(format!("cannot read the rules {}: {e}", path.display())))?;
+    RuleSet::from_toml(&text).map_err(|e| CellError::Config(format!("rules {}: {e}", path.display())))
+}
+
+/// The simulated segment (MN + one drive CN per rules axis on `uri`).
+pub(crate) struct SegmentSim {
+    uri: String,
+    rules: RuleSet,
+    options: CellOptions,
+    segment: Option<Segment>,
+}
+
+impl SegmentSim {
+    pub(crate) fn start(uri: &str, rules: RuleSet, options: CellOptions) -> Result<Self, CellError> {
+        let mut s = Self { uri: uri.into(), rules, options, segment: None };
+        s.spawn()?;
+        Ok(s)
+    }
+
+    fn spawn(&mut self) -> Result<(), CellError> {
+        let err = |reason: String| CellError::Simulator { name: self.uri.clone(), reason };
+        let join = || open_link(&self.uri, false).map_err(|e| err(format!("cannot join {}: {e}", self.uri)));
+        let cycle = self.options.juggler_cycle;
+        let config = MnConfig {
+            cycle,
+            pres_timeout: (cycle / 4).clamp(Duration::from_micros(100), Duration::from_micros(300)),
+            ..MnConfig::default()
+        };
+        let pattern = self.options.juggler_pattern;
+        let mut b = Segment::builder()
+            .config(config)
+            .mn_link(join()?)
+            .program(Box::new(juggler::program(&self.rules, pattern)));
+        for (node, params) in juggler::drives(&self.rules, pattern, Some(self.options.drive_lease)) {
+            b = b.drive(node, join()?, params);
+        }
+        self.segment = Some(b.start().map_err(|e| err(e.to_string()))?);
+        Ok(())
+    }
+}
+
+impl SimControl for SegmentSim {
+    fn kill(&mut self) {
+        if let Some(s) = self.segment.take() {
+            s.stop();
+        }
+    }
+
+    fn restart(&mut self) -> Result<(), CellError> {
+        self.kill();
+        self.spawn()
+    }
+
+    fn is_running(&self) -> bool {
+        self.segment.is_some()
+    }
+}
+
+/// The value map of the drives' PRes for `nodes` (the simulated drives' layout).
+fn value_map(nodes: &[u8]) -> ValueMap {
+    let v = |name: &str, offset, ty| ValueSpec { name: name.into(), offset, ty };
+    ValueMap {
+        nodes: nodes
+            .iter()
+            .map(|n| NodeValues {
+                node: *n,
+                label: None,
+                values: vec![
+                    v("status", 0, ValueType::U16),
+                    v("position", PRES_POSITION_OFFSET, ValueType::I32),
+                    v("speed", PRES_SPEED_OFFSET, ValueType::I32),
+                ],
+            })
+            .collect(),
+    }
+}
+
+fn read_key(path: &Path) -> Result<Vec<u8>, String> {
+    let mut key = std::fs::read(path).map_err(|e| format!("cannot read the key {}: {e}", path.display()))?;
+    while key.last().is_some_and(u8::is_ascii_whitespace) {
+        key.pop();
+    }
+    Ok(key)
+}
+
+/// The integrity of `rules` against the signed approval (as `motus safety run`).
+fn integrity(rules_file: &Path, approval: &Path, key: &Path) -> Result<(), String> {
+    let key = read_key(key)?;
+    let text =
+        std::fs::read_to_string(approval).map_err(|e| format!("approval {}: {e}", approval.display()))?;
+    let approved = Approval::from_toml(&text).and_then(|a| a.verify(&key)).map_err(|e| e.to_string())?;
+    let set = read_rules(rules_file).map_err(|e| e.to_string())?;
+    Integrity::new(approved, secret_hash(&key)).check(&Snapshot::new(&set, &[])).map_err(|e| e.to_string())
+}
+
+/// What the integrity check needs, when the cell names an approval and a key.
+struct Watch {
+    rules: PathBuf,
+    approval: Option<PathBuf>,
+    key: Option<PathBuf>,
+}
+
+impl Watch {
+    fn check(&self) -> Result<(), String> {
+        match (&self.approval, &self.key) {
+            (Some(a), Some(k)) => integrity(&self.rules, a, k),
+            _ => Err("the cell names an approval or a key but not both".into()),
+        }
+    }
+}
+
+/// Starts the supervisor and the monitor on `uri` for `nodes`.
+pub(crate) fn start(
+    uri: &str,
+    sup: &Supervisor,
+    rules: RuleSet,
+    nodes: &[u8],
+    options: &CellOptions,
+) -> Result<JugglerHandle, CellError> {
+    let err = |reason: String| CellError::Simulator { name: uri.into(), reason };
+    let watch = (sup.approval.is_some() || sup.key.is_some()).then(|| Watch {
+        rules: sup.rules.clone(),
+        approval: sup.approval.clone(),
+        key: sup.key.clone(),
+    });
+    let link = open_link(uri, true).map_err(|e| err(format!("cannot join {uri}: {e}")))?;
+    let origin = Instant::now();
+    let map = juggler::value_map(&rules);
+    let inputs = InputMap::new(&rules, map, STATUS_HOMED).map_err(|e| CellError::Config(e.to_string()))?;
+    let renew = Duration::from_secs_f64(rules.config().supervisor.cycle_time.max(0.0001));
+    let target = EplLeaseTarget::new(Arc::clone(&link), origin, options.wire_lease, renew, [0; 8]);
+    let config = OnlineConfig { mode: Mode::Normal, restart: options.supervisor_restart };
+    let mut online = OnlineSupervisor::new(rules, inputs, vec![Box::new(target)], origin, config);
+    let first = watch.as_ref().map_or(Ok(()), Watch::check);
+    online.set_integrity(first.clone());
+    let snapshot = Arc::new(Mutex::new(SupervisorSnapshot {
+        integrity: first,
+        integrity_disabled: watch.is_none(),
+        ..SupervisorSnapshot::default()
+    }));
+    if watch.is_none() {
+        tracing::warn!("juggler supervisor: INTEGRITY CHECK DISABLED (no approval/key in the cell file)");
+    }
+    let (tx, rx) = channel();
+    let stop = Arc::new(AtomicBool::new(false));
+    let views: Views = Arc::new(Mutex::new(BTreeMap::new()));
+    let mut threads = Vec::new();
+    {
+        let (snap, stop) = (Arc::clone(&snapshot), Arc::clone(&stop));
+        let t = std::thread::Builder::new()
+            .name("juggler-supervisor".into())
+            .spawn(move || supervise(online, &*link, watch, rx, &snap, &stop))
+            .map_err(|e| err(e.to_string()))?;
+        threads.push(t);
+    }
+    {
+        let mon_link = open_link(uri, true).map_err(|e| err(format!("cannot join {uri}: {e}")))?;
+        let (views, stop) = (Arc::clone(&views), Arc::clone(&stop));
+        let mut monitor = Monitor::new(value_map(nodes), MonitorConfig { stale_after: 1 });
+        let t = std::thread::Builder::new()
+            .name("juggler-monitor".into())
+            .spawn(move || {
+                let r = monitor.run(&*mon_link, &stop, |c| {
+                    let now = Instant::now();
+                    let mut v = lock(&views);
+                    for n in c.nodes.iter().filter(|n| n.age == Some(0) && n.valid) {
+                        if let (Some(Value::I32(p)), Some(Value::I32(s)), Some(Value::U16(st))) =
+                            (n.value("position"), n.value("speed"), n.value("status"))
+                        {
+                            v.insert(n.node, NodeView { position: p, speed: s, status: st, at: now });
+                        }
+                    }
+                    ControlFlow::Continue(())
+                });
+                if let Err(e) = r {
+                    tracing::warn!(error = %e, "juggler monitor stopped");
+                }
+            })
+            .map_err(|e| err(e.to_string()))?;
+        threads.push(t);
+    }
+    Ok(JugglerHandle { snapshot, ops: Mutex::new(tx), views, stop, threads: Mutex::new(threads) })
+}
+
+/// The supervisor thread: every frame and tick, operator commands, integrity every second.
+fn supervise(
+    mut sup: OnlineSupervisor,
+    link: &dyn motus_epl::EthLink,
+    watch: Option<Watch>,
+    ops: Receiver<Op>,
+    snapshot: &Mutex<SupervisorSnapshot>,
+    stop: &AtomicBool,
+) {
+    let mut buf = vec![0u8; motus_epl::transport::MAX_FRAME];
+    let (mut last_check, mut last_publish) = (Instant::now(), Instant::now());
+    let names: Vec<String> = sup.supervisor().rules().axes().iter().map(|a| a.name.clone()).collect();
+    while !stop.load(Ordering::Relaxed) {
+        while let Ok(op) = ops.try_recv() {
+            match op {
+                Op::StopAll => sup.stop_all(),
+                Op::Reset => sup.reset(),
+            }
+        }
+        if let Some(w) = &watch {
+            if last_check.elapsed() >= Duration::from_secs(1) {
+                last_check = Instant::now();
+                let r = w.check();
+                sup.set_integrity(r.clone());
+                lock(snapshot).integrity = r;
+            }
+        }
+        let event = match link.recv(&mut buf, Duration::from_millis(1)) {
+            Ok(Some((n, at))) => {
+                sup.on_frame(buf.get(..n).unwrap_or(&[]), at).or_else(|| sup.tick(Instant::now()))
+            }
+            Ok(None) => sup.tick(Instant::now()),
+            Err(e) => {
+                tracing::error!(error = %e, "juggler supervisor: link failed");
+                sup.stop_all();
+                break;
+            }
+        };
+        if event.is_none() && last_publish.elapsed() < Duration::from_millis(10) {
+            continue;
+        }
+        last_publish = Instant::now();
+        let mut s = lock(snapshot);
+        match event {
+            Some(OnlineEvent::Safe { .. }) => s.safe_events += 1,
+            Some(OnlineEvent::Unsafe { diagnosis, .. }) => {
+                s.unsafe_events += 1;
+                s.diagnosis = Some(diagnosis);
+            }
+            None => {}
+        }
+        s.safe_to_run = sup.safe_to_run();
+        s.held = sup.held();
+        s.frames = sup.frames();
+        s.stops = sup.stops();
+        s.reaches = names.iter().cloned().zip(sup.supervisor().reaches().iter().copied()).collect();
+        s.samples = names.iter().cloned().zip(sup.samples().iter().copied()).collect();
+    }
+    sup.stop_all();
+}
+
+/// A juggler drive as a read-only axis (see the module documentation).
+pub struct EplAxis {
+    config: AxisConfig,
+    node: u8,
+    handle: Arc<JugglerHandle>,
+}
+
+impl EplAxis {
+    pub(crate) fn new(config: AxisConfig, node: u8, handle: Arc<JugglerHandle>) -> Self {
+        Self { config, node, handle }
+    }
+}
+
+impl Axis for EplAxis {
+    fn name(&self) -> &str {
+        &self.config.name
+    }
+
+    fn capabilities(&self) -> Capabilities {
+        Capabilities { stop: true, quick_stop: true, reports_velocity: true, ..Capabilities::default() }
+    }
+
+    fn scale(&self) -> &Scale {
+        &self.config.scale
+    }
+
+    fn read_state(&mut self) -> Result<AxisState, AxisError> {
+        let view = lock(&self.handle.views).get(&self.node).copied();
+        let v = view.filter(|v| v.at.elapsed() < STALE).ok_or_else(|| AxisError::Communication {
+            axis: self.config.name.clone(),
+            reason: format!("no PRes from POWERLINK node {} for {STALE:?}", self.node),
+        })?;
+        let mut faults = Vec::new();
+        if v.status & STATUS_LEASE_STOP != 0 {
+            faults.push(Fault {
+                kind: FaultKind::Other,
+                reason: "stopped: the safety lease was revoked or expired".into(),
+            });
+        }
+        Ok(AxisState {
+            position: self.config.scale.position_to_si(f64::from(v.position)),
+            position_raw: i64::from(v.position),
+            velocity: Some(self.config.scale.rate_to_si(f64::from(v.speed))),
+            current: None,
+            following_error: None,
+            flags: AxisFlags {
+                enabled: v.status & STATUS_ENABLED != 0,
+                homed: v.status & STATUS_HOMED != 0,
+                moving: v.speed != 0,
+                target_reached: v.speed == 0,
+                ..AxisFlags::default()
+            },
+            faults,
+        })
+    }
+
+    fn execute(&mut self, command: &AxisCommand) -> Result<(), AxisError> {
+        match command {
+            AxisCommand::Stop | AxisCommand::QuickStop => {
+                self.handle.stop_all();
+                Ok(())
+            }
+            other => Err(AxisError::Refused {
+                axis: self.config.name.clone(),
+                command: other.name().into(),
+                reason: "juggler axes are read-only: the juggler runs its own program on the POWERLINK \
+                         segment; only stop and quick-stop (which revoke the safety lease) are accepted"
+                    .into(),
+            }),
+        }
+    }
+}
+
+/// A juggler drive as a device: connected while its PRes are fresh.
+pub(crate) struct EplDevice {
+    pub(crate) name: String,
+    pub(crate) axes: Vec<String>,
+    pub(crate) node: u8,
+    pub(crate) handle: Arc<JugglerHandle>,
+}
+
+impl EplDevice {
+    fn fresh(&self) -> bool {
+        lock(&self.handle.views).get(&self.node).is_some_and(|v| v.at.elapsed() < STALE)
+    }
+}
+
+impl DeviceCtl for EplDevice {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn axes(&self) -> Vec<String> {
+        self.axes.clone()
+    }
+
+    fn connect(&self) -> Result<(), DeviceError> {
+        let deadline = Instant::now() + Duration::from_millis(500);
+        while Instant::now() < deadline {
+            if self.fresh() {
+                return Ok(());
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        Err(DeviceError::NoAnswer(format!("no PRes from POWERLINK node {}", self.node)))
+    }
+
+    fn is_connected(&self) -> bool {
+        self.fresh()
+    }
+}
