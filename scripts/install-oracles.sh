@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs the independent implementations the interoperability tests compare Motus
 # against (specs/oracles.md): python-can and canopen (pinned, from PyPI), tshark, and
-# LinuxCNC's standalone G-code interpreter rs274 (Debian's linuxcnc-uspace).
+# LinuxCNC's standalone G-code interpreter rs274 (Debian's linuxcnc-uspace), and headless
+# Chromium with Playwright for the HMI's browser tests.
 # Idempotent: does nothing when they are already there.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -33,4 +34,17 @@ if ! command -v rs274 >/dev/null || ! /usr/bin/python3 -c 'import gcode' 2>/dev/
     echo "rs274 is needed by the tests: sudo apt-get install --no-install-recommends linuxcnc-uspace" >&2
     exit 1
   fi
+fi
+if ! command -v chromium >/dev/null; then
+  if [ "$(id -u)" = 0 ]; then
+    echo "installing chromium (browser tests of the web HMI)"
+    apt_install chromium
+  else
+    echo "chromium is needed by the browser tests: sudo apt-get install --no-install-recommends chromium" >&2
+    exit 1
+  fi
+fi
+if ! python3 -c 'import playwright' 2>/dev/null; then
+  echo "installing playwright (tests/browser/requirements.txt; drives Debian's chromium)"
+  python3 -m pip install --quiet --disable-pip-version-check -r tests/browser/requirements.txt
 fi

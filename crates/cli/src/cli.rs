@@ -57,7 +57,8 @@ pub enum Command {
     Nfv2(Nfv2Args),
     /// The pan-tilt camera head on two 1209A controllers.
     Pantilt(PanTiltArgs),
-    /// Start simulated devices and run them through a demonstration sequence.
+    /// The whole simulated cell with the station and its web HMI (no hardware, no root);
+    /// `--ps1a-sequence` runs the older PS1A-only demonstration sequence instead.
     Demo(DemoArgs),
     /// The virtual CAN bus (socketcand hub).
     #[command(subcommand)]
@@ -77,6 +78,8 @@ pub enum Command {
     Gcode(crate::cli_cnc::GcodeCommand),
     /// Station users (offline; passwords from standard input).
     User(crate::cli_station::UserArgs),
+    /// Run a station: the cell's devices, the supervisor, programs, and the web HMI/API.
+    Serve(crate::cli_station::ServeArgs),
 }
 
 /// `motus safety` commands.
@@ -579,10 +582,17 @@ pub enum PanTiltAction {
 /// Options of `motus demo`.
 #[derive(Debug, Args)]
 pub struct DemoArgs {
-    /// Number of simulated PS1A modules.
+    /// Address of the HMI.
+    #[arg(long, default_value = "127.0.0.1:8080")]
+    pub listen: String,
+    /// Run the PS1A-only demonstration sequence instead (simulated modules moved through a
+    /// few steps, printed as a table).
+    #[arg(long)]
+    pub ps1a_sequence: bool,
+    /// Number of simulated PS1A modules (with --ps1a-sequence).
     #[arg(long, default_value_t = 4)]
     pub ps1a_modules: u8,
-    /// Keep the simulators running after the sequence until Ctrl-C.
+    /// Keep the simulators running after the sequence until Ctrl-C (with --ps1a-sequence).
     #[arg(long)]
     pub stay: bool,
 }

@@ -1,4 +1,4 @@
-//! Command-line definitions of the station commands (users; `serve` follows).
+//! Command-line definitions of the station commands: `serve`, `user`.
 
 use clap::{Args, Subcommand, ValueEnum};
 use std::path::PathBuf;
@@ -59,4 +59,18 @@ pub enum UserAction {
     },
     /// List users.
     List,
+}
+
+/// Options of `motus serve`.
+#[derive(Debug, Args)]
+pub struct ServeArgs {
+    /// The cell configuration.
+    #[arg(long)]
+    pub config: PathBuf,
+    /// Address of the HMI and API (default: the cell's `[station] listen`).
+    #[arg(long)]
+    pub listen: Option<std::net::SocketAddr>,
+    /// The station's database (default: `<config stem>.lab.sqlite` beside the config).
+    #[arg(long)]
+    pub db: Option<PathBuf>,
 }

@@ -34,7 +34,8 @@ fn check_names_the_line_and_column_of_an_error() {
 fn canon_matches_rs274_line_for_line() {
     // rs274 (LinuxCNC's standalone interpreter) is installed by scripts/install-oracles.sh.
     let dir = tempfile::tempdir().unwrap();
-    let prog = write(dir.path(), "p.ngc", "G21 G90\nG0 X1 Y2\nG1 X10 F100\nG2 X20 Y2 I5 J0\nG18 G3 X0 Z5 R12\nM2\n");
+    let prog =
+        write(dir.path(), "p.ngc", "G21 G90\nG0 X1 Y2\nG1 X10 F100\nG2 X20 Y2 I5 J0\nG18 G3 X0 Z5 R12\nM2\n");
     let o = motus(&["gcode", "canon", "--rs274", &prog]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let ours = String::from_utf8_lossy(&o.stdout).to_string();
@@ -51,7 +52,9 @@ fn canon_matches_rs274_line_for_line() {
     let motion = |s: &str| -> Vec<String> {
         s.lines()
             .filter_map(|l| l.get(13..))
-            .filter(|c| c.starts_with("STRAIGHT_") || c.starts_with("ARC_FEED") || c.starts_with("SET_FEED_RATE"))
+            .filter(|c| {
+                c.starts_with("STRAIGHT_") || c.starts_with("ARC_FEED") || c.starts_with("SET_FEED_RATE")
+            })
             .map(|c| c.replace("-0.0000", "0.0000"))
             .collect()
     };

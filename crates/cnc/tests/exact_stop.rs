@@ -8,7 +8,8 @@ fn rapid_then_sync_m_decelerates() {
     for with_ext in [false, true] {
         let l = AxisLimits { velocity: 200.0, acceleration: 2000.0 };
         let mut ex = Executor::<3>::new(Config::new([l, l, l]), [0.0; 3]).unwrap();
-        ex.push(1, PathItem::Motion(Segment::Line { end: [100.0, 100.0, 0.0], feed: 5.0, rapid: true })).unwrap();
+        ex.push(1, PathItem::Motion(Segment::Line { end: [100.0, 100.0, 0.0], feed: 5.0, rapid: true }))
+            .unwrap();
         if with_ext {
             ex.push(2, PathItem::ExternalParameter { array: ExArray::W, index: 60, value: 3600.0 }).unwrap();
         }
@@ -20,7 +21,11 @@ fn rapid_then_sync_m_decelerates() {
             let sp = ex.tick(0.001);
             worst = worst.max((sp.velocities[0] - prev[0]).abs() / 0.001);
             prev = sp.velocities;
-            while let Some(e) = ex.poll_event() { if let Event::MFunction { number, .. } = e { ex.acknowledge(number); } }
+            while let Some(e) = ex.poll_event() {
+                if let Event::MFunction { number, .. } = e {
+                    ex.acknowledge(number);
+                }
+            }
         }
         eprintln!("with_ext {with_ext}: worst acceleration {worst}");
         assert!(worst <= 2000.0 * 1.001, "with_ext {with_ext}: {worst}");

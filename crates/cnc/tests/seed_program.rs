@@ -32,7 +32,10 @@ fn seed_program_drills_its_holes_through_the_whole_chain() {
                 waited += 1;
             }
             if std::env::var("DBG").is_ok() && sp.velocities.iter().any(|v| v.abs() > 0.0) {
-                eprintln!("{:.3} {:?} {:?} {:?} {:?}", sp.time, sp.state, sp.coupling, sp.positions, sp.velocities);
+                eprintln!(
+                    "{:.3} {:?} {:?} {:?} {:?}",
+                    sp.time, sp.state, sp.coupling, sp.positions, sp.velocities
+                );
             }
         })
         .map_err(|e| e.to_string())
@@ -41,7 +44,11 @@ fn seed_program_drills_its_holes_through_the_whole_chain() {
     states.push(tech.info().state);
     let holes = tech.holes();
     assert_eq!(holes.len(), 3, "{holes:?}");
-    let expected = [(100.0, 100.0, 10.0, 3600.0, 100.0), (110.0, 110.0, 10.0, 3600.0, 100.0), (120.0, 120.0, 50.0, 1800.0, 60.0)];
+    let expected = [
+        (100.0, 100.0, 10.0, 3600.0, 100.0),
+        (110.0, 110.0, 10.0, 3600.0, 100.0),
+        (120.0, 120.0, 50.0, 1800.0, 60.0),
+    ];
     for (h, (x, y, depth, rpm, feed)) in holes.iter().zip(expected) {
         assert!((h.tool_xy[0] - x).abs() < 1e-6 && (h.tool_xy[1] - y).abs() < 1e-6, "{h:?}");
         assert!((h.depth - depth).abs() < 1e-6, "{h:?}");

@@ -54,7 +54,8 @@ fn drop_and_corrupt_rates_are_applied_counted_and_reproducible() {
 
 #[test]
 fn delays_hold_the_sender() {
-    let config = FaultConfig { seed: 1, delay: 1.0, delay_by: Duration::from_millis(2), ..FaultConfig::default() };
+    let config =
+        FaultConfig { seed: 1, delay: 1.0, delay_by: Duration::from_millis(2), ..FaultConfig::default() };
     let hub = UdpHub::new();
     let tx = FaultyLink::new(hub.connect().unwrap(), config);
     let t = Instant::now();

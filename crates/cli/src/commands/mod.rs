@@ -3,9 +3,9 @@
 mod axis;
 mod canbus;
 mod canopen;
+mod cnc;
 mod codec;
 mod demo;
-mod cnc;
 mod epl;
 mod gcode;
 mod kv01;
@@ -13,6 +13,7 @@ mod nfv2;
 mod ps1a;
 mod robot;
 mod safety;
+mod serve;
 mod sim;
 mod sim_can;
 mod user;
@@ -33,7 +34,8 @@ pub fn run(command: Command) -> Result<()> {
         Command::Kv01(k) => kv01::run(k),
         Command::Nfv2(n) => nfv2::run_nfv2(n),
         Command::Pantilt(p) => nfv2::run_pantilt(p),
-        Command::Demo(d) => demo::run(d),
+        Command::Demo(d) if d.ps1a_sequence => demo::run(d),
+        Command::Demo(d) => serve::demo(d),
         Command::Canbus(c) => canbus::run(c),
         Command::Canopen(c) => canopen::run(c),
         Command::Robot(r) => robot::run(r),
@@ -41,6 +43,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Epl(c) => epl::run(c),
         Command::Gcode(c) => gcode::run(c),
         Command::User(u) => user::run(u),
+        Command::Serve(a) => serve::serve(a),
     }
 }
 

@@ -1,0 +1,422 @@
+//! [`MachineBackend`] for the [`StationMachine`].
+
+use std::sync::atomic::Ordering;
+use std::sync::PoisonError;
+
+use motus_axis::{AxisCommand, Direction, MotionProfile};
+use motus_cell::GroupHandle;
+use motus_gcode::{interpret_with, InterpreterConfig};
+use motus_station_web::{
+    AxisAction, AxisParameters, AxisView, BackendError, Caller, GroupAction, GroupKind, GroupView,
+    MachineBackend, PredictedReach, ProgramCheck, ProgramDiagnostic, ProgramInfo, ProgramStatus, RobotScene,
+    RunState, SafetyView, Sample, SampleBatch, SceneView, SignalView,
+};
+
+use crate::{lock, StationMachine};
+
+fn failed(e: impl std::fmt::Display) -> BackendError {
+    BackendError::Failed(e.to_string())
+}
+
+impl StationMachine {
+    fn view(&self, id: &str) -> Result<AxisView, BackendError> {
+        self.shared
+            .views
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .iter()
+            .find(|v| v.id == id)
+            .cloned()
+            .ok_or_else(|| BackendError::NotFound { kind: "axis", id: id.to_owned() })
+    }
+
+    fn execute(&self, id: &str, command: &AxisCommand) -> Result<(), BackendError> {
+        let entry = self
+            .shared
+            .axes
+            .iter()
+            .find(|a| a.view.id == id)
+            .ok_or_else(|| BackendError::NotFound { kind: "axis", id: id.to_owned() })?;
+        lock(&entry.axis).execute(command).map_err(failed)
+    }
+
+    fn juggler_blocks(&self) -> Option<String> {
+        let j = self.shared.juggler.as_ref()?;
+        let s = j.snapshot();
+        (s.safe_to_run != Some(true)).then(|| s.diagnosis.unwrap_or_else(|| "SafeToRun is false".into()))
+    }
+}
+
+impl MachineBackend for StationMachine {
+    fn axes(&self) -> Vec<AxisView> {
+        self.shared.views.read().unwrap_or_else(PoisonError::into_inner).clone()
+    }
+
+    fn command(&self, caller: &Caller, axis: &str, action: AxisAction) -> Result<(), BackendError> {
+        let view = self.view(axis)?;
+        action.validate(&view)?;
+        let motion = !matches!(action, AxisAction::Stop);
+        if motion && self.shared.estop.load(Ordering::Relaxed) {
+            return Err(BackendError::EStopped);
+        }
+        if motion && view.group.as_deref() == Some("juggler") {
+            if let Some(why) = self.juggler_blocks() {
+                return Err(BackendError::SafetyHold(why));
+            }
+        }
+        tracing::info!(user = %caller.user, axis, ?action, "axis command");
+        let profile = |speed: f64, acc: Option<f64>| MotionProfile {
+            velocity: Some(speed),
+            acceleration: Some(acc.unwrap_or(view.acceleration)),
+            deceleration: None,
+        };
+        let cmd = match action {
+            AxisAction::Jog { direction, speed, acceleration } => AxisCommand::Jog {
+                direction: if direction > 0.0 { Direction::Positive } else { Direction::Negative },
+                profile: profile(speed, acceleration),
+            },
+            AxisAction::Move { target, speed, acceleration } => {
+                AxisCommand::MoveAbsolute { target, profile: profile(speed, acceleration) }
+            }
+            AxisAction::Home => {
+                if !view.enabled {
+                    // Switch the drive on first; a device without enable reports so and homes anyway.
+                    let _ = self.execute(axis, &AxisCommand::Enable);
+                }
+                AxisCommand::Home
+            }
+            AxisAction::Stop => AxisCommand::Stop,
+        };
+        if matches!(cmd, AxisCommand::MoveAbsolute { .. } | AxisCommand::Jog { .. }) && !view.enabled {
+            let _ = self.execute(axis, &AxisCommand::Enable);
+        }
+        self.execute(axis, &cmd)
+    }
+
+    fn set_axis_parameters(
+        &self,
+        caller: &Caller,
+        axis: &str,
+        params: AxisParameters,
+    ) -> Result<(), BackendError> {
+        let _ = (caller, params);
+        self.view(axis)?;
+        Err(BackendError::State(
+            "axis parameters come from the cell file: edit it (administrator) and restart the station".into(),
+        ))
+    }
+
+    fn estop(&self, caller: &Caller) {
+        tracing::warn!(user = %caller.user, "EMERGENCY STOP");
+        self.shared.estop.store(true, Ordering::Relaxed);
+        self.programs.service.stop();
+        if let Some(j) = self.shared.juggler.as_ref() {
+            j.stop_all();
+        }
+        for a in &self.shared.axes {
+            if let Err(e) = lock(&a.axis).execute(&AxisCommand::QuickStop) {
+                tracing::warn!(axis = %a.view.id, "quick stop: {e}");
+            }
+        }
+    }
+
+    fn reset(&self, caller: &Caller) -> Result<(), BackendError> {
+        tracing::info!(user = %caller.user, "reset");
+        self.shared.estop.store(false, Ordering::Relaxed);
+        if let Some(j) = self.shared.juggler.as_ref() {
+            j.reset();
+        }
+        for a in &self.shared.axes {
+            let _ = lock(&a.axis).execute(&AxisCommand::FaultReset);
+        }
+        Ok(())
+    }
+
+    fn safety(&self) -> SafetyView {
+        let estop = self.shared.estop.load(Ordering::Relaxed);
+        let Some(j) = self.shared.juggler.as_ref() else {
+            return SafetyView {
+                safe_to_run: !estop,
+                held: estop,
+                estop,
+                diagnosis: estop.then(|| "emergency stop".to_owned()),
+                rules_name: "none".into(),
+                rules_fingerprint: String::new(),
+                predicted: Vec::new(),
+            };
+        };
+        let s = j.snapshot();
+        // In the rules' units: the reach until standstill against the axis's end limits.
+        let predicted = s
+            .reaches
+            .iter()
+            .map(|(axis, r)| {
+                let lim =
+                    self.shared.rule_limits.iter().find(|(n, _, _)| n == axis).map(|(_, lo, hi)| (*lo, *hi));
+                let (stop_position, distance) = match lim {
+                    Some((lo, hi)) if hi - r.hi <= r.lo - lo => (r.hi, hi - r.hi),
+                    Some((lo, _)) => (r.lo, r.lo - lo),
+                    None => (r.hi, f64::NAN),
+                };
+                PredictedReach { axis: axis.clone(), stop_position, distance }
+            })
+            .collect();
+        let diagnosis = match (&s.integrity, &s.diagnosis) {
+            (Err(e), _) => Some(e.clone()),
+            (Ok(()), d) => d.clone(),
+        };
+        SafetyView {
+            safe_to_run: s.safe_to_run == Some(true) && !estop,
+            held: s.held || estop,
+            estop,
+            diagnosis: if estop { Some("emergency stop".into()) } else { diagnosis },
+            rules_name: self
+                .shared
+                .config
+                .supervisor
+                .as_ref()
+                .map_or("none".into(), |c| c.rules.display().to_string()),
+            rules_fingerprint: self.shared.rules_fingerprint.clone(),
+            predicted,
+        }
+    }
+
+    fn set_safety_rules(&self, caller: &Caller, toml: &str) -> Result<String, BackendError> {
+        let _ = caller;
+        let rules = motus_safety::RuleSet::from_toml(toml)
+            .map_err(|e| BackendError::invalid("rules", e.to_string()))?;
+        let snap = motus_safety::Snapshot::new(&rules, &[]);
+        Err(BackendError::State(format!(
+            "rules valid (fingerprint {}); install them with `motus safety approve` on the station (administrator key)",
+            snap.fingerprint()
+        )))
+    }
+
+    fn upload_program(&self, caller: &Caller, name: &str, text: &str) -> Result<ProgramInfo, BackendError> {
+        if name.is_empty() || name.len() > 128 {
+            return Err(BackendError::invalid("name", "1 to 128 characters".into()));
+        }
+        if text.len() > 4 << 20 {
+            return Err(BackendError::invalid("text", "program larger than 4 MiB".into()));
+        }
+        Ok(self.programs.add(&caller.user, name, text))
+    }
+
+    fn programs(&self) -> Vec<ProgramInfo> {
+        lock(&self.programs.store).values().map(|(i, _)| i.clone()).collect()
+    }
+
+    fn check_program(&self, id: &str) -> Result<ProgramCheck, BackendError> {
+        let text = lock(&self.programs.store)
+            .get(id)
+            .map(|(_, t)| t.clone())
+            .ok_or_else(|| BackendError::NotFound { kind: "program", id: id.to_owned() })?;
+        let config = InterpreterConfig { require_program_end: false, ..InterpreterConfig::default() };
+        let errors = match interpret_with(&text, config) {
+            Ok(_) => Vec::new(),
+            Err(e) => vec![ProgramDiagnostic {
+                line: e.line as usize,
+                col: e.column as usize,
+                message: e.kind.to_string(),
+            }],
+        };
+        Ok(ProgramCheck { errors, demands: Vec::new() })
+    }
+
+    fn run_program(&self, caller: &Caller, id: &str) -> Result<(), BackendError> {
+        if self.shared.estop.load(Ordering::Relaxed) {
+            return Err(BackendError::EStopped);
+        }
+        let st = self.programs.service.status();
+        if matches!(st.state, motus_cnc::ServiceState::Running | motus_cnc::ServiceState::Held) {
+            return Err(BackendError::State("a program is running".into()));
+        }
+        let text = lock(&self.programs.store)
+            .get(id)
+            .map(|(_, t)| t.clone())
+            .ok_or_else(|| BackendError::NotFound { kind: "program", id: id.to_owned() })?;
+        tracing::info!(user = %caller.user, id, "program run");
+        self.programs
+            .service
+            .run(id, &text)
+            .map_err(|e| BackendError::invalid("program", format!("{}:{}: {}", e.line, e.column, e.kind)))?;
+        *lock(&self.programs.running) = Some(id.to_owned());
+        Ok(())
+    }
+
+    fn hold_program(&self, _caller: &Caller) -> Result<(), BackendError> {
+        self.programs.service.hold();
+        Ok(())
+    }
+
+    fn resume_program(&self, _caller: &Caller) -> Result<(), BackendError> {
+        if self.shared.estop.load(Ordering::Relaxed) {
+            return Err(BackendError::EStopped);
+        }
+        self.programs.service.resume();
+        Ok(())
+    }
+
+    fn stop_program(&self, _caller: &Caller) -> Result<(), BackendError> {
+        self.programs.service.stop();
+        Ok(())
+    }
+
+    fn program_status(&self) -> ProgramStatus {
+        let s = self.programs.service.status();
+        ProgramStatus {
+            state: match s.state {
+                motus_cnc::ServiceState::Idle => RunState::Idle,
+                motus_cnc::ServiceState::Running => RunState::Running,
+                motus_cnc::ServiceState::Held => RunState::Held,
+                motus_cnc::ServiceState::Done => RunState::Done,
+                motus_cnc::ServiceState::Stopped => RunState::Stopped,
+            },
+            program: lock(&self.programs.running).clone(),
+            progress: s.progress,
+            line: s.line as usize,
+            line_text: s.line_text,
+            message: s.message,
+        }
+    }
+
+    fn signals(&self) -> Vec<SignalView> {
+        self.shared
+            .axes
+            .iter()
+            .map(|a| SignalView { id: format!("{}.position", a.view.id), unit: a.view.unit.clone() })
+            .collect()
+    }
+
+    fn samples_since(&self, cursor: u64) -> SampleBatch {
+        let smp = lock(&self.shared.samples);
+        let end = smp.first + smp.rows.len() as u64;
+        let from = cursor.max(smp.first).min(end);
+        let skip = usize::try_from(from - smp.first).unwrap_or(usize::MAX);
+        let samples = smp.rows.iter().skip(skip).map(|(t, v)| Sample { t: *t, values: v.clone() }).collect();
+        SampleBatch { cursor: end, samples }
+    }
+
+    fn scene(&self) -> SceneView {
+        let views = self.axes();
+        let pos = |id: &str| views.iter().find(|v| v.id == id).map(|v| v.position);
+        let mut scene = SceneView::default();
+        for g in &self.shared.groups {
+            match &g.handle {
+                GroupHandle::Omni(o) => {
+                    if let Some(p) = o.true_pose() {
+                        scene.robot = Some(RobotScene {
+                            pose: [p.x, p.y, p.heading],
+                            path: lock(&self.shared.robot_path).iter().copied().collect(),
+                            target: None,
+                            bounds: [-2.0, -2.0, 2.0, 2.0],
+                        });
+                    }
+                }
+                GroupHandle::PanTilt(_) => {
+                    if let (Some(a), Some(b)) =
+                        (g.axes.first().and_then(|a| pos(a)), g.axes.get(1).and_then(|a| pos(a)))
+                    {
+                        scene.pan_tilt = Some([a, b]);
+                    }
+                }
+                GroupHandle::Arm(_) => {
+                    let joints: Vec<f64> = g.axes.iter().filter_map(|a| pos(a)).collect();
+                    let links = vec![0.2; joints.len()];
+                    scene.arm = Some((joints, links));
+                }
+                GroupHandle::Juggler(_) => {
+                    for a in &g.axes {
+                        if let Some(v) = views.iter().find(|v| &v.id == a) {
+                            scene.juggler.push((v.id.clone(), v.position, v.limits.min, v.limits.max));
+                        }
+                    }
+                }
+                GroupHandle::Axes => {
+                    let s = self.programs.service.status();
+                    scene.gantry =
+                        Some(([s.xyz[0] / 1000.0, s.xyz[1] / 1000.0, s.xyz[2] / 1000.0], [2.0, 1.5, 0.3]));
+                }
+            }
+        }
+        scene
+    }
+
+    fn groups(&self) -> Vec<GroupView> {
+        self.shared
+            .groups
+            .iter()
+            .map(|g| GroupView {
+                id: g.name.clone(),
+                kind: match &g.handle {
+                    GroupHandle::Omni(_) => GroupKind::Robot,
+                    GroupHandle::PanTilt(_) => GroupKind::PanTilt,
+                    GroupHandle::Arm(_) => GroupKind::Arm,
+                    GroupHandle::Juggler(_) => GroupKind::Juggler,
+                    GroupHandle::Axes => GroupKind::Gantry,
+                },
+                axes: g.axes.clone(),
+            })
+            .collect()
+    }
+
+    fn group_command(&self, caller: &Caller, group: &str, action: GroupAction) -> Result<(), BackendError> {
+        let g = self
+            .shared
+            .groups
+            .iter()
+            .find(|g| g.name == group)
+            .ok_or_else(|| BackendError::NotFound { kind: "group", id: group.to_owned() })?;
+        match action {
+            GroupAction::Stop => {
+                for a in &g.axes {
+                    let _ = self.execute(a, &AxisCommand::Stop);
+                }
+                Ok(())
+            }
+            GroupAction::GoTo { targets } => {
+                if matches!(g.handle, GroupHandle::Omni(_) | GroupHandle::Juggler(_)) {
+                    return Err(BackendError::State(format!(
+                        "group {group}: go-to is not available here (move its axes, or use `motus robot` for the robot)"
+                    )));
+                }
+                if targets.len() != g.axes.len() {
+                    return Err(BackendError::invalid(
+                        "targets",
+                        format!("{} values for {} axes", targets.len(), g.axes.len()),
+                    ));
+                }
+                // Validate every target before moving anything.
+                let mut moves = Vec::new();
+                for (a, t) in g.axes.iter().zip(&targets) {
+                    let v = self.view(a)?;
+                    let action = AxisAction::Move { target: *t, speed: v.default_speed, acceleration: None };
+                    action.validate(&v)?;
+                    moves.push((a.clone(), action));
+                }
+                for (a, action) in moves {
+                    self.command(caller, &a, action)?;
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn camera_url(&self) -> Option<String> {
+        self.camera_url.clone()
+    }
+
+    fn on_slot_end(&self, user: &str) {
+        tracing::info!(user, "slot ended: removing programs, stopping and homing");
+        self.programs.service.stop();
+        lock(&self.programs.store).retain(|_, (info, _)| info.owner != user);
+        for a in &self.shared.axes {
+            let _ = lock(&a.axis).execute(&AxisCommand::Stop);
+        }
+        for a in &self.shared.axes {
+            if a.view.group.as_deref() != Some("juggler") {
+                let _ = lock(&a.axis).execute(&AxisCommand::Home);
+            }
+        }
+    }
+}

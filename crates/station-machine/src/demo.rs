@@ -1,0 +1,76 @@
+//! The demo cell written into a directory, ready for [`crate::StationMachine::start_file`]:
+//! the shipped `crates/station/examples/demo-cell.toml` with its links, ports and files moved
+//! into that directory, so `motus demo` needs no root, no fixed paths and no free port 29536.
+
+use std::io;
+use std::path::{Path, PathBuf};
+
+const DEMO_CELL: &str = include_str!("../../station/examples/demo-cell.toml");
+const DRILL_PLATE: &str = include_str!("../../station/examples/programs/drill-plate.ngc");
+const JUGGLE_CSV: &str = include_str!("../../station/examples/programs/juggle.csv");
+const OMNI_SQUARE: &str = include_str!("../../station/examples/programs/omni-square.toml");
+
+/// A free TCP port on 127.0.0.1 (probed now).
+pub fn free_tcp_port() -> io::Result<u16> {
+    Ok(std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
+}
+
+/// A base port with 16 free UDP ports after it (probed now).
+pub fn free_udp_block() -> io::Result<u16> {
+    for _ in 0..100 {
+        let base = std::net::UdpSocket::bind("127.0.0.1:0")?.local_addr()?.port();
+        if base < 60_000 && (0..16).all(|i| std::net::UdpSocket::bind(("127.0.0.1", base + i)).is_ok()) {
+            return Ok(base);
+        }
+    }
+    Err(io::Error::new(io::ErrorKind::AddrInUse, "no free block of 16 UDP ports on 127.0.0.1"))
+}
+
+/// Writes the demo cell into `dir` with the station listening on `listen`; returns the path
+/// of the cell file. The juggler runs its 1 ms UDP cycle, so its rules get a 1 ms cycle and
+/// a 2 ms lease (the shipped rules are for the real machine's 400 us).
+pub fn write_demo_cell(dir: &Path, listen: &str) -> io::Result<PathBuf> {
+    let programs = dir.join("programs");
+    std::fs::create_dir_all(&programs)?;
+    std::fs::create_dir_all(dir.join("links"))?;
+    std::fs::write(programs.join("drill-plate.ngc"), DRILL_PLATE)?;
+    std::fs::write(programs.join("juggle.csv"), JUGGLE_CSV)?;
+    std::fs::write(programs.join("omni-square.toml"), OMNI_SQUARE)?;
+    let rules = motus_safety::JUGGLER_TOML
+        .replace("cycle_time = 0.0004", "cycle_time = 0.001")
+        .replace("lease_time = 0.0008", "lease_time = 0.002");
+    std::fs::write(dir.join("juggler.toml"), &rules)?;
+    approve_demo_rules(dir, &rules)?;
+    let cell = DEMO_CELL
+        .replace("/tmp/motus-demo/", &format!("{}/links/", dir.display()))
+        .replace("127.0.0.1:29536", &format!("127.0.0.1:{}", free_tcp_port()?))
+        .replace("udp://127.0.0.1:24000", &format!("udp://127.0.0.1:{}", free_udp_block()?))
+        .replace("../../safety/examples/juggler.toml", "juggler.toml")
+        .replace("listen = \"127.0.0.1:8080\"", &format!("listen = \"{listen}\""));
+    let path = dir.join("demo-cell.toml");
+    std::fs::write(&path, cell)?;
+    Ok(path)
+}
+
+/// The demo's administrator approves the juggler rules: a random key (mode 0600) and the
+/// signed approval in `dir/data`, as `motus safety approve` would write them.
+fn approve_demo_rules(dir: &Path, rules: &str) -> io::Result<()> {
+    use std::os::unix::fs::PermissionsExt;
+    let data = dir.join("data");
+    std::fs::create_dir_all(&data)?;
+    let key: String = {
+        use rand::Rng;
+        rand::thread_rng().sample_iter(&rand::distributions::Alphanumeric).take(40).map(char::from).collect()
+    };
+    let key_path = data.join("admin.key");
+    std::fs::write(&key_path, &key)?;
+    std::fs::set_permissions(&key_path, std::fs::Permissions::from_mode(0o600))?;
+    let set = motus_safety::RuleSet::from_toml(rules).map_err(|e| io::Error::other(e.to_string()))?;
+    let snapshot = motus_safety::Snapshot::new(&set, &[]);
+    let approval = motus_safety::Approval::sign(&snapshot, "demo-admin", "demo", key.as_bytes())
+        .map_err(|e| io::Error::other(e.to_string()))?;
+    std::fs::write(
+        data.join("juggler.approved"),
+        approval.to_toml().map_err(|e| io::Error::other(e.to_string()))?,
+    )
+}

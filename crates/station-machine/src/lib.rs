@@ -1,0 +1,249 @@
+//! The station's machine: what `motus serve` and `motus demo` put behind the web layer.
+//!
+//! [`StationMachine::start`] opens a cell ([`motus_cell::open_cell`]: simulators, drivers,
+//! the juggler's supervisor), then runs three threads: a poller that reads every axis every
+//! [`StationOptions::poll`] (the HMI's view, the traced signals, the robot's path), the
+//! device reconnection ([`motus_station::devices::Reconnector`]: a device that disconnects
+//! is retried with back-off while its axes are faulted and stopped; nothing else stops), and
+//! the CNC program service ([`motus_cnc::ProgramService`]). It implements
+//! [`motus_station_web::MachineBackend`] in [`backend`].
+
+#![forbid(unsafe_code)]
+
+pub mod backend;
+pub mod demo;
+mod poller;
+mod programs;
+
+use std::collections::VecDeque;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError, RwLock};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use motus_axis::Axis;
+use motus_cell::{open_cell, CellOptions, RunningCell};
+use motus_station::alarm::{AlarmSink, MemoryAlarms};
+use motus_station::config::Cell;
+use motus_station::devices::{Backoff, FaultTable, Reconnector};
+use motus_station_web::{AxisLimits, AxisView};
+use thiserror::Error;
+
+/// Why the station could not start.
+#[derive(Debug, Error)]
+pub enum StationError {
+    /// The cell file is invalid (every problem, with file:line:col).
+    #[error("{0}")]
+    Config(String),
+    /// The cell could not be opened.
+    #[error("{0}")]
+    Cell(#[from] motus_cell::CellError),
+    /// A thread could not be started.
+    #[error("starting a thread: {0}")]
+    Thread(#[from] std::io::Error),
+}
+
+/// Options of the station.
+#[derive(Debug, Clone)]
+pub struct StationOptions {
+    /// How the cell runs.
+    pub cell: CellOptions,
+    /// Period of the axis poller (HMI view and traces).
+    pub poll: Duration,
+    /// External camera URL shown in the HMI.
+    pub camera_url: Option<String>,
+}
+
+impl Default for StationOptions {
+    fn default() -> Self {
+        Self { cell: CellOptions::default(), poll: Duration::from_millis(50), camera_url: None }
+    }
+}
+
+/// One axis of the station.
+pub(crate) struct AxisEntry {
+    pub(crate) view: AxisView,
+    pub(crate) axis: Mutex<Box<dyn Axis + Send>>,
+}
+
+/// Traced samples: one value per axis position, at the poller's period.
+#[derive(Default)]
+pub(crate) struct Samples {
+    pub(crate) first: u64,
+    pub(crate) rows: VecDeque<(f64, Vec<f64>)>,
+}
+
+/// Capacity of the sample ring (rows).
+pub(crate) const SAMPLE_ROWS: usize = 4096;
+
+/// State shared by the threads and the backend.
+pub(crate) struct Shared {
+    /// The running cell (simulators); behind a lock: it is not `Sync`.
+    pub(crate) running: Mutex<RunningCell>,
+    /// The validated configuration.
+    pub(crate) config: Cell,
+    /// The groups of the cell.
+    pub(crate) groups: Vec<motus_cell::CellGroup>,
+    /// The juggler, if the cell has one.
+    pub(crate) juggler: Option<Arc<motus_cell::JugglerHandle>>,
+    /// Limits of the supervised axes in the rules' units (name, min, max).
+    pub(crate) rule_limits: Vec<(String, f64, f64)>,
+    /// Fingerprint of the rules file at start.
+    pub(crate) rules_fingerprint: String,
+    pub(crate) axes: Vec<AxisEntry>,
+    pub(crate) views: RwLock<Vec<AxisView>>,
+    pub(crate) samples: Mutex<Samples>,
+    pub(crate) robot_path: Mutex<VecDeque<[f64; 2]>>,
+    pub(crate) estop: AtomicBool,
+    pub(crate) faults: Arc<FaultTable>,
+    pub(crate) alarms: Arc<MemoryAlarms>,
+    pub(crate) epoch: Instant,
+    pub(crate) stop: AtomicBool,
+}
+
+/// The running station machine (see the crate documentation).
+pub struct StationMachine {
+    pub(crate) shared: Arc<Shared>,
+    pub(crate) programs: programs::Programs,
+    pub(crate) camera_url: Option<String>,
+    threads: Vec<JoinHandle<()>>,
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+impl StationMachine {
+    /// Loads `cell_file` and starts the station.
+    pub fn start_file(cell_file: &Path, options: StationOptions) -> Result<Self, StationError> {
+        let cell = motus_station::config::load(cell_file).map_err(|e| StationError::Config(e.to_string()))?;
+        Self::start(&cell, options)
+    }
+
+    /// Starts the station on a validated cell.
+    pub fn start(cell: &Cell, options: StationOptions) -> Result<Self, StationError> {
+        let running = open_cell(cell, options.cell)?;
+        let mut axes = Vec::new();
+        for dev in running.axes() {
+            for axis in dev.axes {
+                let name = axis.name().to_owned();
+                let Some(cfg) = cell.axis(&name) else { continue };
+                let group =
+                    cell.groups.iter().find(|g| g.axes.iter().any(|a| a == &name)).map(|g| g.name.clone());
+                let view = AxisView {
+                    id: name.clone(),
+                    name: name.clone(),
+                    device: dev.device.clone(),
+                    group,
+                    unit: cfg.unit.symbol().to_owned(),
+                    position: 0.0,
+                    velocity: 0.0,
+                    enabled: false,
+                    homed: false,
+                    moving: false,
+                    fault: None,
+                    limits: AxisLimits {
+                        min: cfg.limits.min,
+                        max: cfg.limits.max,
+                        max_speed: cfg.max_velocity,
+                        max_acceleration: cfg.max_acceleration,
+                    },
+                    acceleration: cfg.max_acceleration * 0.5,
+                    default_speed: cfg.max_velocity * 0.25,
+                };
+                axes.push(AxisEntry { view, axis: Mutex::new(axis) });
+            }
+        }
+        let views = axes.iter().map(|a| a.view.clone()).collect();
+        let faults = Arc::new(FaultTable::default());
+        let alarms = Arc::new(MemoryAlarms::default());
+        let groups = running.groups().to_vec();
+        let juggler = running.juggler();
+        let handles = running.device_handles();
+        let rules = cell
+            .supervisor
+            .as_ref()
+            .and_then(|s| std::fs::read_to_string(&s.rules).ok())
+            .and_then(|t| motus_safety::RuleSet::from_toml(&t).ok());
+        let rule_limits = rules
+            .as_ref()
+            .map(|r| r.axes().iter().map(|a| (a.name.clone(), a.limits.min, a.limits.max)).collect())
+            .unwrap_or_default();
+        let rules_fingerprint = rules
+            .as_ref()
+            .map(|r| motus_safety::Snapshot::new(r, &[]).fingerprint().to_string())
+            .unwrap_or_default();
+        let shared = Arc::new(Shared {
+            rule_limits,
+            rules_fingerprint,
+            running: Mutex::new(running),
+            config: cell.clone(),
+            groups,
+            juggler,
+            axes,
+            views: RwLock::new(views),
+            samples: Mutex::new(Samples::default()),
+            robot_path: Mutex::new(VecDeque::new()),
+            estop: AtomicBool::new(false),
+            faults: Arc::clone(&faults),
+            alarms: Arc::clone(&alarms),
+            epoch: Instant::now(),
+            stop: AtomicBool::new(false),
+        });
+        let mut threads = Vec::new();
+        {
+            let s = Arc::clone(&shared);
+            let poll = options.poll;
+            threads.push(
+                std::thread::Builder::new()
+                    .name("motus-poller".into())
+                    .spawn(move || poller::run(&s, poll))?,
+            );
+        }
+        {
+            let s = Arc::clone(&shared);
+            let sink: Arc<dyn AlarmSink> = alarms;
+            let mut rec = Reconnector::new(Backoff::default(), sink, faults);
+            for h in handles {
+                rec.add(h);
+            }
+            threads.push(std::thread::Builder::new().name("motus-reconnect".into()).spawn(move || {
+                while !s.stop.load(Ordering::Relaxed) {
+                    let events = rec.poll(Instant::now());
+                    for e in events {
+                        tracing::info!("device: {e:?}");
+                    }
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+            })?);
+        }
+        let programs = programs::Programs::start()?;
+        Ok(Self { shared, programs, camera_url: options.camera_url, threads })
+    }
+
+    /// Runs `f` with the running cell (simulators: kill / restart for tests and demos).
+    pub fn with_cell<R>(&self, f: impl FnOnce(&RunningCell) -> R) -> R {
+        f(&lock(&self.shared.running))
+    }
+
+    /// Active alarms of the station's devices and tasks: (source, code).
+    pub fn alarms(&self) -> Vec<(String, motus_station::alarm::AlarmCode)> {
+        self.shared.alarms.active()
+    }
+
+    /// Stops the threads and the cell.
+    pub fn stop(&mut self) {
+        self.shared.stop.store(true, Ordering::Relaxed);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+        lock(&self.shared.running).stop();
+    }
+}
+
+impl Drop for StationMachine {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}

@@ -1,0 +1,215 @@
+//! Request authentication: the session cookie ([`Auth`]), the CSRF header for mutating
+//! requests ([`Csrf`]), JSON bodies with JSON errors ([`Body`]), and the
+//! authorise-run-audit helper every command goes through ([`Inner::command`]).
+
+use axum::async_trait;
+use axum::extract::rejection::JsonRejection;
+use axum::extract::{FromRequest, FromRequestParts, Request};
+use axum::http::request::Parts;
+use axum::http::{header, HeaderMap, StatusCode};
+use axum::Json;
+use motus_lab::{Action, Actor, AuditEntry, AuditOutcome, Command, Role, SessionError, SessionInfo};
+use serde::de::DeserializeOwned;
+
+use crate::backend::{BackendError, Caller};
+use crate::error::ApiError;
+use crate::server::{AppState, Inner};
+
+/// Header carrying the CSRF token on every mutating request.
+pub const CSRF_HEADER: &str = "x-csrf-token";
+
+/// A logged-in user (valid session cookie).
+#[derive(Debug, Clone)]
+pub struct Auth {
+    /// The session.
+    pub session: SessionInfo,
+}
+
+impl Auth {
+    /// The lab actor.
+    #[must_use]
+    pub fn actor(&self) -> Actor {
+        Actor::new(&self.session.user, self.session.role)
+    }
+
+    /// The backend caller.
+    #[must_use]
+    pub fn caller(&self) -> Caller {
+        Caller::new(&self.session.user, self.session.role)
+    }
+}
+
+/// A logged-in user whose request carries the right `X-CSRF-Token`.
+#[derive(Debug, Clone)]
+pub struct Csrf(pub Auth);
+
+/// The session token from the request's cookies.
+#[must_use]
+pub fn session_token(state: &Inner, headers: &HeaderMap) -> Option<String> {
+    let cookie = &state.lab.sessions().policy().cookie;
+    headers
+        .get_all(header::COOKIE)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .find_map(|h| cookie.token_from_header(h).map(str::to_string))
+}
+
+/// Looks up the session of `headers`.
+///
+/// # Errors
+/// 401 without a valid session, 500 on a storage failure.
+pub fn authenticate(state: &Inner, headers: &HeaderMap) -> Result<Auth, ApiError> {
+    let token =
+        session_token(state, headers).ok_or_else(|| ApiError::unauthenticated("no session cookie"))?;
+    match state.lab.sessions().lookup(&token, state.now()) {
+        Ok(session) => Ok(Auth { session }),
+        Err(e @ (SessionError::Unknown | SessionError::Expired(_) | SessionError::UserGone(_))) => {
+            Err(ApiError::unauthenticated(e.to_string()))
+        }
+        Err(e) => Err(ApiError::internal(e.to_string())),
+    }
+}
+
+#[async_trait]
+impl FromRequestParts<AppState> for Auth {
+    type Rejection = ApiError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &AppState) -> Result<Self, Self::Rejection> {
+        authenticate(state, &parts.headers)
+    }
+}
+
+#[async_trait]
+impl FromRequestParts<AppState> for Csrf {
+    type Rejection = ApiError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &AppState) -> Result<Self, Self::Rejection> {
+        let auth = authenticate(state, &parts.headers)?;
+        let presented = parts.headers.get(CSRF_HEADER).and_then(|v| v.to_str().ok());
+        if state.lab.sessions().check_csrf(&auth.session, presented).is_err() {
+            let entry = AuditEntry {
+                time: state.now(),
+                user: auth.session.user.clone(),
+                action: "csrf".into(),
+                target: format!("{} {}", parts.method, parts.uri.path()),
+                outcome: AuditOutcome::Denied("CSRF token missing or wrong".into()),
+            };
+            if let Err(e) = state.lab.audit().append(&entry) {
+                tracing::error!(error = %e, "audit write failed");
+            }
+            return Err(ApiError::new(StatusCode::FORBIDDEN, "csrf", "X-CSRF-Token header missing or wrong"));
+        }
+        Ok(Csrf(auth))
+    }
+}
+
+/// A JSON body whose parse errors are answered as 400 `{ "error": "invalid" }`.
+#[derive(Debug, Clone)]
+pub struct Body<T>(pub T);
+
+#[async_trait]
+impl<S, T> FromRequest<S> for Body<T>
+where
+    T: DeserializeOwned,
+    S: Send + Sync,
+{
+    type Rejection = ApiError;
+
+    async fn from_request(req: Request, state: &S) -> Result<Self, Self::Rejection> {
+        match Json::<T>::from_request(req, state).await {
+            Ok(Json(v)) => Ok(Body(v)),
+            Err(e @ JsonRejection::MissingJsonContentType(_)) => Err(ApiError::invalid(e.body_text())),
+            Err(e) => Err(ApiError::invalid(e.body_text())),
+        }
+    }
+}
+
+impl Inner {
+    /// A station command: authorise with lab (denials audited), run `f` on a blocking
+    /// thread, audit its result.
+    ///
+    /// # Errors
+    /// 403 when refused, the backend's error mapped to its status otherwise.
+    pub async fn command<T, F>(&self, auth: &Auth, command: Command, f: F) -> Result<T, ApiError>
+    where
+        T: Send + 'static,
+        F: FnOnce(Caller) -> Result<T, BackendError> + Send + 'static,
+    {
+        let action = Action::Command { station: self.config.station.clone(), command };
+        self.authorized(auth, &action, f).await
+    }
+
+    /// [`Inner::command`] for any lab action.
+    ///
+    /// # Errors
+    /// 403 when refused, the backend's error mapped to its status otherwise.
+    pub async fn authorized<T, F>(&self, auth: &Auth, action: &Action, f: F) -> Result<T, ApiError>
+    where
+        T: Send + 'static,
+        F: FnOnce(Caller) -> Result<T, BackendError> + Send + 'static,
+    {
+        self.lab.authorize(&auth.actor(), action, self.now())?;
+        self.run_and_record(auth, action, f).await
+    }
+
+    /// Runs `f` on a blocking thread and audits its result as `action` (the caller has
+    /// authorised it already).
+    ///
+    /// # Errors
+    /// The backend's error mapped to its status.
+    pub async fn run_and_record<T, F>(&self, auth: &Auth, action: &Action, f: F) -> Result<T, ApiError>
+    where
+        T: Send + 'static,
+        F: FnOnce(Caller) -> Result<T, BackendError> + Send + 'static,
+    {
+        let actor = auth.actor();
+        let caller = auth.caller();
+        let result = tokio::task::spawn_blocking(move || f(caller))
+            .await
+            .map_err(|e| ApiError::internal(format!("backend task failed: {e}")))?;
+        let audit = result.as_ref().map(|_| ()).map_err(ToString::to_string);
+        if let Err(e) = self.lab.record(&actor, action, audit, self.now()) {
+            tracing::error!(error = %e, "audit write failed");
+        }
+        Ok(result?)
+    }
+
+    /// Authorises `action` (denials audited) without running anything.
+    ///
+    /// # Errors
+    /// 403 when refused.
+    pub fn check(&self, auth: &Auth, action: &Action) -> Result<(), ApiError> {
+        Ok(self.lab.authorize(&auth.actor(), action, self.now())?)
+    }
+
+    /// Audits an admin action that has no lab [`Action`] of its own.
+    pub fn audit(&self, auth: &Auth, action: &str, target: &str, result: Result<(), String>) {
+        let outcome = match result {
+            Ok(()) => AuditOutcome::Ok,
+            Err(m) => AuditOutcome::Error(m),
+        };
+        let entry = AuditEntry {
+            time: self.now(),
+            user: auth.session.user.clone(),
+            action: action.into(),
+            target: target.into(),
+            outcome,
+        };
+        if let Err(e) = self.lab.audit().append(&entry) {
+            tracing::error!(error = %e, "audit write failed");
+        }
+    }
+
+    /// True if `auth` may command the station now (admin, or student holding the slot).
+    #[must_use]
+    pub fn can_command(&self, auth: &Auth) -> bool {
+        match auth.session.role {
+            Role::Admin => true,
+            Role::Viewer => false,
+            Role::Student => {
+                let probe = Action::Command { station: self.config.station.clone(), command: Command::Stop };
+                self.lab.authorizer().authorize(&auth.session.user, Role::Student, &probe, self.now()).is_ok()
+            }
+        }
+    }
+}

@@ -1,0 +1,190 @@
+//! Test harness: a real server on 127.0.0.1:0 over the FakeBackend and a lab MemoryStore,
+//! with an injectable clock, and a small HTTP client that keeps the session cookie and the
+//! CSRF token.
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, dead_code)]
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use motus_lab::{HashParams, Lab, LabConfig, MemoryStore, MotionLimits, Role, Store, UnixMs};
+use motus_station_web::{start, Clock, FakeBackend, OffsetClock, WebConfig, WebHandle};
+use reqwest::{Method, StatusCode};
+use serde_json::Value;
+
+pub const STATION: &str = "st1";
+pub const ADMIN_PW: &str = "admin-password-1";
+pub const STUDENT_PW: &str = "student-password-1";
+pub const VIEWER_PW: &str = "viewer-password-1";
+
+pub struct Env {
+    pub handle: WebHandle,
+    pub clock: Arc<OffsetClock>,
+    pub backend: Arc<FakeBackend>,
+    pub lab: Arc<Lab>,
+}
+
+impl Env {
+    pub fn new() -> Env {
+        Self::with(|_| {})
+    }
+
+    pub fn with(tweak: impl FnOnce(&mut LabConfig)) -> Env {
+        let mut cfg = LabConfig::default();
+        cfg.sessions.cookie.secure = false;
+        // Cheap hashes: the tests log in often (the cost is not under test here).
+        cfg.password.hash = HashParams { memory_kib: 64, iterations: 1, parallelism: 1 };
+        cfg.student_limits.default = Some(MotionLimits { max_speed: 1.0, max_acceleration: 6.0 });
+        tweak(&mut cfg);
+        let store: Arc<dyn Store> = Arc::new(MemoryStore::new());
+        let lab = Arc::new(Lab::new(store, cfg));
+        let clock = Arc::new(OffsetClock::new());
+        let now = clock.now();
+        for (n, pw, r) in [
+            ("admin", ADMIN_PW, Role::Admin),
+            ("student", STUDENT_PW, Role::Student),
+            ("student2", STUDENT_PW, Role::Student),
+            ("viewer", VIEWER_PW, Role::Viewer),
+        ] {
+            lab.users().add(n, pw, r, now).unwrap();
+        }
+        let backend = Arc::new(FakeBackend::new());
+        let config = WebConfig {
+            listen: "127.0.0.1:0".parse().unwrap(),
+            station: STATION.into(),
+            ws_rate_hz: 20.0,
+            cleanup_interval: Duration::from_millis(100),
+            clock: Arc::clone(&clock) as Arc<dyn Clock>,
+        };
+        let handle = start(config, Arc::clone(&backend) as _, Arc::clone(&lab)).unwrap();
+        Env { handle, clock, backend, lab }
+    }
+
+    pub fn client(&self) -> Client {
+        Client { http: reqwest::Client::new(), base: self.handle.url(), cookie: None, csrf: None }
+    }
+
+    pub async fn login(&self, user: &str, pw: &str) -> Client {
+        let mut c = self.client();
+        let (st, body) = c.login(user, pw).await;
+        assert_eq!(st, StatusCode::OK, "{body}");
+        c
+    }
+
+    pub fn now(&self) -> UnixMs {
+        self.clock.now()
+    }
+
+    /// Audit entries (newest first) as (user, action, outcome kind, message).
+    pub fn audit(&self) -> Vec<(String, String, String, String)> {
+        self.lab
+            .audit()
+            .query(&motus_lab::AuditQuery { limit: 1000, ..Default::default() })
+            .unwrap()
+            .into_iter()
+            .map(|r| {
+                (
+                    r.entry.user,
+                    r.entry.action,
+                    r.entry.outcome.kind().to_string(),
+                    r.entry.outcome.message().to_string(),
+                )
+            })
+            .collect()
+    }
+}
+
+pub struct Client {
+    pub http: reqwest::Client,
+    pub base: String,
+    pub cookie: Option<String>,
+    pub csrf: Option<String>,
+}
+
+impl Client {
+    pub async fn login(&mut self, user: &str, pw: &str) -> (StatusCode, Value) {
+        let r = self
+            .http
+            .post(format!("{}/api/login", self.base))
+            .json(&serde_json::json!({ "user": user, "password": pw }))
+            .send()
+            .await
+            .unwrap();
+        let st = r.status();
+        if let Some(sc) = r.headers().get(reqwest::header::SET_COOKIE) {
+            let sc = sc.to_str().unwrap().to_string();
+            self.cookie = Some(sc.split(';').next().unwrap().to_string());
+        }
+        let body: Value = r.json().await.unwrap_or(Value::Null);
+        if st == StatusCode::OK {
+            self.csrf = body["csrf_token"].as_str().map(str::to_string);
+        }
+        (st, body)
+    }
+
+    pub async fn raw(
+        &self,
+        method: Method,
+        path: &str,
+        body: Option<Value>,
+        csrf: Option<&str>,
+    ) -> reqwest::Response {
+        let mut rb = self.http.request(method, format!("{}{}", self.base, path));
+        if let Some(c) = &self.cookie {
+            rb = rb.header(reqwest::header::COOKIE, c);
+        }
+        if let Some(t) = csrf {
+            rb = rb.header("X-CSRF-Token", t);
+        }
+        if let Some(b) = body {
+            rb = rb.json(&b);
+        }
+        rb.send().await.unwrap()
+    }
+
+    pub async fn req(&self, method: Method, path: &str, body: Option<Value>) -> (StatusCode, Value) {
+        let csrf = self.csrf.clone();
+        let r = self.raw(method, path, body, csrf.as_deref()).await;
+        let st = r.status();
+        (st, r.json().await.unwrap_or(Value::Null))
+    }
+
+    pub async fn get(&self, path: &str) -> (StatusCode, Value) {
+        self.req(Method::GET, path, None).await
+    }
+
+    pub async fn post(&self, path: &str, body: Value) -> (StatusCode, Value) {
+        self.req(Method::POST, path, Some(body)).await
+    }
+
+    pub async fn post0(&self, path: &str) -> (StatusCode, Value) {
+        self.req(Method::POST, path, None).await
+    }
+
+    pub async fn axis(&self, id: &str) -> Value {
+        let (st, axes) = self.get("/api/axes").await;
+        assert_eq!(st, StatusCode::OK);
+        axes.as_array().unwrap().iter().find(|a| a["id"] == id).unwrap().clone()
+    }
+
+    /// Books `[now, now + 30 min)` for the logged-in user.
+    pub async fn book_now(&self, now: UnixMs) -> (StatusCode, Value) {
+        self.post("/api/reservations", serde_json::json!({ "start": now.0, "end": now.0 + 30 * 60 * 1000 }))
+            .await
+    }
+}
+
+/// Polls `f` every 20 ms until it is true or `secs` elapse.
+pub async fn wait_for<F, Fut>(secs: f64, mut f: F) -> bool
+where
+    F: FnMut() -> Fut,
+    Fut: std::future::Future<Output = bool>,
+{
+    let end = std::time::Instant::now() + Duration::from_secs_f64(secs);
+    while std::time::Instant::now() < end {
+        if f().await {
+            return true;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    false
+}
