@@ -75,9 +75,18 @@ fn hub_simulated_drives_master_commands_and_the_robot_through_the_binary() {
     let _drives = common::SimProcess::start(&["sim", "icla", "--bus", &bus, "--nodes", "2,3,4"], "ready");
     std::thread::sleep(std::time::Duration::from_millis(300));
 
-    // scan lists the three nodes with their identity.
-    let o = motus(&["canopen", "--bus", &bus, "scan", "--to", "10"]);
-    let out = stdout(&o);
+    // scan lists the three nodes with their identity (the simulators may still be joining
+    // the hub on a loaded machine: scan again for up to 10 s).
+    let mut tries = 0;
+    let (o, out) = loop {
+        let o = motus(&["canopen", "--bus", &bus, "scan", "--to", "10"]);
+        let out = stdout(&o);
+        tries += 1;
+        if tries >= 20 || [2, 3, 4].iter().all(|n| out.contains(&format!("node {n:3}: device type"))) {
+            break (o, out);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(500));
+    };
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     for n in [2, 3, 4] {
         assert!(out.contains(&format!("node {n:3}: device type 0x00020192")), "{out}");

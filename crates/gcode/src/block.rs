@@ -2,7 +2,7 @@
 //! with LinuxCNC's checks (one G per modal group, one M per M group, no repeated words).
 
 use crate::error::{ErrorKind, KResult};
-use crate::expr::{eval_at, Params};
+use crate::params::Params;
 use crate::parse::Line;
 
 /// G codes, as ten times their number (G92.1 = 921).
@@ -91,7 +91,7 @@ impl Block {
 }
 
 fn integer(v: f64, col: u32) -> KResult<i64> {
-    let r = v.round();
+    let r = crate::expr::round(v);
     if (v - r).abs() > 0.0001 {
         return Err((col, ErrorKind::NonInteger(v)));
     }
@@ -103,10 +103,11 @@ fn integer(v: f64, col: u32) -> KResult<i64> {
 }
 
 /// Evaluates every word of `line` with the parameters as they are before the line.
-pub(crate) fn read_block(line: &Line, params: &Params) -> KResult<Block> {
-    let mut b = Block { first_col: line.words.first().map_or(1, |w| w.col), ..Block::default() };
+/// `b` must be empty ([`Block::default`]); it is filled in place.
+pub(crate) fn read_block(b: &mut Block, line: &Line, params: &Params, stack: &mut Vec<f64>) -> KResult<()> {
+    b.first_col = line.words.first().map_or(1, |w| w.col);
     for w in &line.words {
-        let v = eval_at(params, &w.value, w.col)?;
+        let v = line.eval(params, stack, w.value, w.col)?;
         let col = w.col;
         let set = |slot: &mut Option<f64>, letter: u8| -> KResult<()> {
             if slot.is_some() {
@@ -117,7 +118,7 @@ pub(crate) fn read_block(line: &Line, params: &Params) -> KResult<Block> {
         };
         match w.letter {
             b'G' => {
-                let code10 = (v * 10.0).round();
+                let code10 = crate::expr::round(v * 10.0);
                 if (v * 10.0 - code10).abs() > 0.0001 || !(0.0..=9999.0).contains(&code10) {
                     return Err((col, ErrorKind::UnsupportedG(v)));
                 }
@@ -176,5 +177,5 @@ pub(crate) fn read_block(line: &Line, params: &Params) -> KResult<Block> {
             other => return Err((col, ErrorKind::UnsupportedLetter(char::from(other)))),
         }
     }
-    Ok(b)
+    Ok(())
 }

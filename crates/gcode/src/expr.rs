@@ -1,16 +1,13 @@
-//! Expressions (`[..]`, functions, operators) and parameters (`#n`, `#<local>`, `#<_global>`).
+//! Expressions (`[..]`, functions, operators), compiled by the parser into postfix
+//! instructions ([`Op`]) and evaluated on a value stack (no trees, no allocation).
 //!
 //! Semantics follow LinuxCNC: trigonometric functions work in degrees, `EQ`/`NE` compare
 //! with a tolerance of 0.0001, binary operators of equal precedence evaluate left to right
 //! (`2**3**2` is 64), `MOD` gives a result with the sign of the divisor's magnitude (never
 //! negative), `ROUND` rounds half away from zero.
 
-use std::collections::HashMap;
-
-use crate::error::{ErrorKind, KResult};
-
-/// Highest numbered parameter (LinuxCNC's `RS274NGC_MAX_PARAMETERS - 1`).
-pub const MAX_PARAMETER: usize = 5602;
+use crate::error::ErrorKind;
+use crate::params::{param_index, Params};
 /// Tolerance of `EQ` / `NE` (LinuxCNC's `TOLERANCE_EQUAL`).
 const TOLERANCE_EQUAL: f64 = 0.0001;
 
@@ -32,20 +29,21 @@ pub(crate) enum Func {
 }
 
 impl Func {
-    pub(crate) fn from_name(name: &str) -> Option<Self> {
+    /// The function of a lower-case name.
+    pub(crate) fn from_name(name: &[u8]) -> Option<Self> {
         Some(match name {
-            "abs" => Self::Abs,
-            "acos" => Self::Acos,
-            "asin" => Self::Asin,
-            "cos" => Self::Cos,
-            "exp" => Self::Exp,
-            "fix" => Self::Fix,
-            "fup" => Self::Fup,
-            "ln" => Self::Ln,
-            "round" => Self::Round,
-            "sin" => Self::Sin,
-            "sqrt" => Self::Sqrt,
-            "tan" => Self::Tan,
+            b"abs" => Self::Abs,
+            b"acos" => Self::Acos,
+            b"asin" => Self::Asin,
+            b"cos" => Self::Cos,
+            b"exp" => Self::Exp,
+            b"fix" => Self::Fix,
+            b"fup" => Self::Fup,
+            b"ln" => Self::Ln,
+            b"round" => Self::Round,
+            b"sin" => Self::Sin,
+            b"sqrt" => Self::Sqrt,
+            b"tan" => Self::Tan,
             _ => return None,
         })
     }
@@ -162,150 +160,99 @@ impl BinOp {
     }
 }
 
-/// A reference to a parameter.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) enum ParamRef {
-    /// `#<value>`: numbered (the value must be an integer 1..=5602).
-    Numbered(Box<Expr>),
-    /// `#<name>` (lower case, spaces removed).
-    Named(String),
+/// `x.round()` (half away from zero), without the library call when `x` is already an
+/// integer (the usual case for G/M codes and parameter numbers).
+#[inline]
+pub(crate) fn round(x: f64) -> f64 {
+    // Exact test: the saturating cast gives back `x` only for integers (and -0.0 -> 0,
+    // which compares equal and is returned unchanged).
+    if (x as i64) as f64 == x {
+        x
+    } else {
+        x.round()
+    }
 }
 
-/// An expression tree.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) enum Expr {
+/// One instruction of a compiled value, in postfix order.
+///
+/// Names are byte ranges of the line's normalised text (lower case, without spaces).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Op {
+    /// Push a number.
     Num(f64),
-    Param(ParamRef),
-    Neg(Box<Expr>),
-    Func(Func, Box<Expr>),
-    Atan(Box<Expr>, Box<Expr>),
-    Exists(String),
-    Bin(BinOp, Box<Expr>, Box<Expr>),
+    /// Pop a parameter number, push that parameter's value.
+    Param,
+    /// Push parameter `#n` (a literal, valid number: `#12`).
+    ParamAt(usize),
+    /// Push the named parameter `#<name>`.
+    Named(u32, u32),
+    /// Push 1 if the named parameter exists, else 0 (`EXISTS[#<name>]`).
+    Exists(u32, u32),
+    /// Negate the top value.
+    Neg,
+    /// Apply a function to the top value.
+    Func(Func),
+    /// Pop b, pop a, push `ATAN[a]/[b]` in degrees.
+    Atan,
+    /// Pop r, pop l, push `l op r`.
+    Bin(BinOp),
 }
 
-/// A subroutine frame's local parameters.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct Frame {
-    /// `#1..#30` of this call.
-    pub(crate) locals: [f64; 30],
-    /// Named locals (`#<name>` without a leading underscore).
-    pub(crate) named: HashMap<String, f64>,
+/// A word's value: a number read directly (the common case) or a compiled expression
+/// (a range of the line's [`Op`]s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Val {
+    /// A plain number.
+    Num(f64),
+    /// Instructions `start..end` of the line.
+    Code(u32, u32),
 }
 
-/// All parameters: numbered (global, except `#1..#30` inside a call), named locals, globals.
-#[derive(Debug, Clone)]
-pub(crate) struct Params {
-    numbered: Vec<f64>,
-    globals: HashMap<String, f64>,
-    /// `frames[0]` is the main program's frame (its `#1..#30` live in `numbered`).
-    pub(crate) frames: Vec<Frame>,
+/// The name `text[start..end]` (ASCII, so always valid UTF-8).
+pub(crate) fn name(text: &[u8], start: u32, end: u32) -> &str {
+    text.get(start as usize..end as usize).and_then(|n| std::str::from_utf8(n).ok()).unwrap_or("")
 }
 
-impl Default for Params {
-    fn default() -> Self {
-        Self {
-            numbered: vec![0.0; MAX_PARAMETER + 1],
-            globals: HashMap::new(),
-            frames: vec![Frame::default()],
-        }
-    }
+fn pop(stack: &mut Vec<f64>) -> Result<f64, ErrorKind> {
+    stack.pop().ok_or(ErrorKind::BadExpression("operand missing"))
 }
 
-/// Converts a value to a parameter index (must be within 0.0001 of an integer in 1..=5602).
-pub(crate) fn param_index(v: f64) -> Result<usize, ErrorKind> {
-    let r = v.round();
-    if (v - r).abs() > 0.0001 || !(1.0..=MAX_PARAMETER as f64).contains(&r) {
-        return Err(ErrorKind::ParameterOutOfRange(v));
-    }
-    // `r` is an integer in 1..=5602 here.
-    Ok(r as usize)
-}
-
-impl Params {
-    fn in_call(&self) -> bool {
-        self.frames.len() > 1
-    }
-
-    /// Reads numbered parameter `idx` (1..=5602).
-    pub(crate) fn get(&self, idx: usize) -> f64 {
-        if self.in_call() && (1..=30).contains(&idx) {
-            if let Some(f) = self.frames.last() {
-                return f.locals.get(idx - 1).copied().unwrap_or(0.0);
+/// Runs `ops` (a complete value) on `stack` (cleared first) and returns the result.
+/// Evaluation order is LinuxCNC's: left operand, right operand, then the operator.
+pub(crate) fn run(params: &Params, stack: &mut Vec<f64>, ops: &[Op], text: &[u8]) -> Result<f64, ErrorKind> {
+    stack.clear();
+    for op in ops {
+        let v = match *op {
+            Op::Num(v) => v,
+            Op::Param => params.get(param_index(pop(stack)?)?),
+            Op::ParamAt(i) => params.get(i),
+            Op::Named(a, b) => {
+                let n = name(text, a, b);
+                params.get_named(n).ok_or_else(|| ErrorKind::UndefinedNamedParameter(n.to_owned()))?
             }
-        }
-        self.numbered.get(idx).copied().unwrap_or(0.0)
-    }
-
-    /// Writes numbered parameter `idx` (1..=5602).
-    pub(crate) fn set(&mut self, idx: usize, v: f64) {
-        let in_call = self.in_call();
-        if in_call && (1..=30).contains(&idx) {
-            if let Some(slot) = self.frames.last_mut().and_then(|f| f.locals.get_mut(idx - 1)) {
-                *slot = v;
+            Op::Exists(a, b) => {
+                if params.get_named(name(text, a, b)).is_some() {
+                    1.0
+                } else {
+                    0.0
+                }
             }
-            return;
-        }
-        if let Some(slot) = self.numbered.get_mut(idx) {
-            *slot = v;
-        }
-    }
-
-    /// Reads a named parameter.
-    pub(crate) fn get_named(&self, name: &str) -> Option<f64> {
-        if name.starts_with('_') {
-            self.globals.get(name).copied()
-        } else {
-            self.frames.last().and_then(|f| f.named.get(name).copied())
-        }
-    }
-
-    /// Writes a named parameter.
-    pub(crate) fn set_named(&mut self, name: &str, v: f64) {
-        if name.starts_with('_') {
-            self.globals.insert(name.to_owned(), v);
-        } else if let Some(f) = self.frames.last_mut() {
-            f.named.insert(name.to_owned(), v);
-        }
-    }
-
-    /// Evaluates an expression; errors carry no position (the caller adds it).
-    pub(crate) fn eval(&self, e: &Expr) -> Result<f64, ErrorKind> {
-        self.eval_depth(e, 0)
-    }
-
-    fn eval_depth(&self, e: &Expr, depth: u32) -> Result<f64, ErrorKind> {
-        if depth > 200 {
-            return Err(ErrorKind::BadExpression("nested too deeply"));
-        }
-        let d = depth + 1;
-        match e {
-            Expr::Num(v) => Ok(*v),
-            Expr::Param(ParamRef::Numbered(ix)) => {
-                let i = param_index(self.eval_depth(ix, d)?)?;
-                Ok(self.get(i))
+            Op::Neg => -pop(stack)?,
+            Op::Func(f) => f.apply(pop(stack)?)?,
+            Op::Atan => {
+                let b = pop(stack)?;
+                let a = pop(stack)?;
+                a.atan2(b).to_degrees()
             }
-            Expr::Param(ParamRef::Named(n)) => {
-                self.get_named(n).ok_or_else(|| ErrorKind::UndefinedNamedParameter(n.clone()))
+            Op::Bin(o) => {
+                let r = pop(stack)?;
+                let l = pop(stack)?;
+                o.apply(l, r)?
             }
-            Expr::Neg(x) => Ok(-self.eval_depth(x, d)?),
-            Expr::Func(f, x) => f.apply(self.eval_depth(x, d)?),
-            Expr::Atan(a, b) => {
-                let (a, b) = (self.eval_depth(a, d)?, self.eval_depth(b, d)?);
-                Ok(a.atan2(b).to_degrees())
-            }
-            Expr::Exists(n) => Ok(if self.get_named(n).is_some() { 1.0 } else { 0.0 }),
-            Expr::Bin(op, l, r) => {
-                let l = self.eval_depth(l, d)?;
-                let r = self.eval_depth(r, d)?;
-                op.apply(l, r)
-            }
-        }
+        };
+        stack.push(v);
     }
-}
-
-/// Evaluates `e` and attaches `col` to an error.
-pub(crate) fn eval_at(p: &Params, e: &Expr, col: u32) -> KResult<f64> {
-    p.eval(e).map_err(|k| (col, k))
+    pop(stack)
 }
 
 #[cfg(test)]
@@ -327,15 +274,32 @@ mod tests {
     }
 
     #[test]
-    fn locals_shadow_in_calls() {
+    fn round_matches_std() {
+        for x in [0.0, -0.0, 2.5, -2.5, 0.49999999999999994, 1e300, -7.0, 4503599627370497.0, f64::INFINITY] {
+            assert_eq!(round(x).to_bits(), x.round().to_bits(), "{x}");
+        }
+        assert!(round(f64::NAN).is_nan());
+    }
+
+    #[test]
+    fn postfix_runs_left_to_right() {
+        // 10 - 4 - 3 = 3 as [10 4 - 3 -]; #2 = 5 read through Param.
         let mut p = Params::default();
-        p.set(1, 5.0);
-        p.frames.push(Frame::default());
-        assert_eq!(p.get(1), 0.0);
-        p.set(1, 7.0);
-        p.set(31, 9.0);
-        p.frames.pop();
-        assert_eq!(p.get(1), 5.0);
-        assert_eq!(p.get(31), 9.0);
+        p.set(2, 5.0);
+        let mut st = Vec::new();
+        let ops = [Op::Num(10.0), Op::Num(4.0), Op::Bin(BinOp::Sub), Op::Num(3.0), Op::Bin(BinOp::Sub)];
+        assert_eq!(run(&p, &mut st, &ops, b"").unwrap(), 3.0);
+        let ops = [Op::Num(2.0), Op::Param, Op::Neg];
+        assert_eq!(run(&p, &mut st, &ops, b"").unwrap(), -5.0);
+        let ops = [Op::Named(0, 3)];
+        assert_eq!(
+            run(&p, &mut st, &ops, b"abc").unwrap_err(),
+            ErrorKind::UndefinedNamedParameter("abc".into())
+        );
+        assert_eq!(run(&p, &mut st, &[Op::Exists(0, 3)], b"abc").unwrap(), 0.0);
+        assert_eq!(
+            run(&p, &mut st, &[Op::Num(0.0), Op::Param], b"").unwrap_err(),
+            ErrorKind::ParameterOutOfRange(0.0)
+        );
     }
 }

@@ -3,7 +3,8 @@
 //! [`Precision::Rs274`] prints numbers like `rs274` (`%.4f`, so the text can be diffed
 //! with it); [`Precision::Full`] prints every number with Rust's shortest round-trip
 //! formatting (`{}` on `f64`, e.g. `10`, `0.1`, `3.3333333333333335`), which loses nothing.
-//! [`format_line`] adds `rs274`'s `%5d N..... ` prefix.
+//! [`format_line`] adds `rs274`'s `%5d N..... ` prefix. [`write_canon`] and
+//! [`write_line`] append the same text to a reused `String` (no allocation per call).
 
 use std::fmt::Write;
 
@@ -23,8 +24,58 @@ fn num(out: &mut String, v: f64, p: Precision) {
     // Writing to a String cannot fail.
     let _ = match p {
         Precision::Full => write!(out, "{v}"),
-        Precision::Rs274 => write!(out, "{v:.4}"),
+        Precision::Rs274 => {
+            if fixed4(out, v) {
+                return;
+            }
+            write!(out, "{v:.4}")
+        }
     };
+}
+
+/// `{v:.4}` without the general formatting machinery, when the rounding is certain:
+/// `x = |v| * 10^4` is within `x * 2^-53` of the exact product, so unless the fraction
+/// of `x` lies that close to one half, rounding `x` gives the exact digits. Returns
+/// `false` (nothing written) otherwise, or for large and non-finite values.
+fn fixed4(out: &mut String, v: f64) -> bool {
+    let x = v.abs() * 10_000.0;
+    if x.is_nan() || x >= 1e15 {
+        return false;
+    }
+    // x < 1e15 < 2^53: the truncation and the fraction are exact.
+    let t = x as u64;
+    let frac = x - t as f64;
+    if (frac - 0.5).abs() <= x * f64::EPSILON {
+        return false;
+    }
+    let n = t + u64::from(frac > 0.5);
+    if v.is_sign_negative() {
+        out.push('-');
+    }
+    let mut digits = [0u8; 20];
+    let mut k = digits.len();
+    let mut ip = n / 10_000;
+    loop {
+        k -= 1;
+        if let Some(d) = digits.get_mut(k) {
+            // A single decimal digit.
+            *d = b'0' + (ip % 10) as u8;
+        }
+        ip /= 10;
+        if ip == 0 {
+            break;
+        }
+    }
+    for &d in digits.get(k..).unwrap_or(&[]) {
+        out.push(char::from(d));
+    }
+    out.push('.');
+    let dec = n % 10_000;
+    for div in [1000, 100, 10, 1] {
+        // A single decimal digit.
+        out.push(char::from(b'0' + (dec / div % 10) as u8));
+    }
+    true
 }
 
 fn nums(out: &mut String, vs: &[f64], p: Precision) {
@@ -39,6 +90,12 @@ fn nums(out: &mut String, vs: &[f64], p: Precision) {
 /// The call as `rs274` prints it, e.g. `STRAIGHT_FEED(10, 5, 3, 0, 0, 0)`.
 pub fn format_canon(c: &Canon, p: Precision) -> String {
     let mut o = String::with_capacity(64);
+    write_canon(&mut o, c, p);
+    o
+}
+
+/// Appends the text of [`format_canon`] to `o`.
+pub fn write_canon(o: &mut String, c: &Canon, p: Precision) {
     match c {
         Canon::UseLengthUnits { units } => o.push_str(match units {
             Units::Mm => "USE_LENGTH_UNITS(CANON_UNITS_MM)",
@@ -46,29 +103,29 @@ pub fn format_canon(c: &Canon, p: Precision) -> String {
         }),
         Canon::SetG5xOffset { index, offset } => {
             let _ = write!(o, "SET_G5X_OFFSET({index}, ");
-            nums(&mut o, offset, p);
+            nums(o, offset, p);
             o.push(')');
         }
         Canon::SetG92Offset { offset } => {
             o.push_str("SET_G92_OFFSET(");
-            nums(&mut o, offset, p);
+            nums(o, offset, p);
             o.push(')');
         }
         Canon::SetXyRotation { degrees } => {
             o.push_str("SET_XY_ROTATION(");
-            num(&mut o, *degrees, p);
+            num(o, *degrees, p);
             o.push(')');
         }
         Canon::SetFeedReference => o.push_str("SET_FEED_REFERENCE(CANON_XYZ)"),
         Canon::SetFeedMode => o.push_str("SET_FEED_MODE(0, 0)"),
         Canon::SetFeedRate { rate } => {
             o.push_str("SET_FEED_RATE(");
-            num(&mut o, *rate, p);
+            num(o, *rate, p);
             o.push(')');
         }
         Canon::SetSpindleSpeed { rpm } => {
             o.push_str("SET_SPINDLE_SPEED(0, ");
-            num(&mut o, *rpm, p);
+            num(o, *rpm, p);
             o.push(')');
         }
         Canon::StartSpindleClockwise => o.push_str("START_SPINDLE_CLOCKWISE(0)"),
@@ -76,7 +133,7 @@ pub fn format_canon(c: &Canon, p: Precision) -> String {
         Canon::StopSpindleTurning => o.push_str("STOP_SPINDLE_TURNING(0)"),
         Canon::SetSpindleMode => {
             o.push_str("SET_SPINDLE_MODE(0 ");
-            num(&mut o, 0.0, p);
+            num(o, 0.0, p);
             o.push(')');
         }
         Canon::MistOn => o.push_str("MIST_ON()"),
@@ -96,24 +153,24 @@ pub fn format_canon(c: &Canon, p: Precision) -> String {
         }
         Canon::StraightTraverse { end } => {
             o.push_str("STRAIGHT_TRAVERSE(");
-            nums(&mut o, end, p);
+            nums(o, end, p);
             o.push(')');
         }
         Canon::StraightFeed { end } => {
             o.push_str("STRAIGHT_FEED(");
-            nums(&mut o, end, p);
+            nums(o, end, p);
             o.push(')');
         }
         Canon::ArcFeed(a) => {
             o.push_str("ARC_FEED(");
-            nums(&mut o, &[a.first_end, a.second_end, a.first_centre, a.second_centre], p);
+            nums(o, &[a.first_end, a.second_end, a.first_centre, a.second_centre], p);
             let _ = write!(o, ", {}, ", a.rotation);
-            nums(&mut o, &[a.axis_end, a.a, a.b, a.c], p);
+            nums(o, &[a.axis_end, a.a, a.b, a.c], p);
             o.push(')');
         }
         Canon::Dwell { seconds } => {
             o.push_str("DWELL(");
-            num(&mut o, *seconds, p);
+            num(o, *seconds, p);
             o.push(')');
         }
         Canon::OptionalProgramStop => o.push_str("OPTIONAL_PROGRAM_STOP()"),
@@ -136,16 +193,27 @@ pub fn format_canon(c: &Canon, p: Precision) -> String {
             };
         }
     }
-    o
 }
 
 /// A line as `rs274` prints it: `%5d` counter, the N field (`N..... ` or `N10    `), the call.
 pub fn format_line(counter: u32, call: &CanonCall, p: Precision) -> String {
-    let nfield = match call.n {
-        Some(n) => format!("N{n:<5} "),
-        None => "N..... ".to_owned(),
+    let mut o = String::with_capacity(96);
+    write_line(&mut o, counter, call, p);
+    o
+}
+
+/// Appends the text of [`format_line`] to `o` (without a line terminator).
+pub fn write_line(o: &mut String, counter: u32, call: &CanonCall, p: Precision) {
+    // Writing to a String cannot fail.
+    let _ = write!(o, "{counter:5} ");
+    let _ = match call.n {
+        Some(n) => write!(o, "N{n:<5} "),
+        None => {
+            o.push_str("N..... ");
+            Ok(())
+        }
     };
-    format!("{counter:5} {nfield}{}", format_canon(&call.canon, p))
+    write_canon(o, &call.canon, p);
 }
 
 #[cfg(test)]
@@ -192,5 +260,33 @@ mod tests {
         assert_eq!(format_canon(&e, Precision::Full), "EXTERNAL_PARAMETER(W, 60, 3600)");
         let m = Canon::MFunction { number: 60, sync: MSync::Sync };
         assert_eq!(format_canon(&m, Precision::Full), "M_FUNCTION(60, SYNC)");
+    }
+
+    #[test]
+    fn fixed4_is_rust_dot4() {
+        // The fast path must print exactly what `{:.4}` prints (the reference).
+        let mut vals =
+            vec![0.0, -0.0, -0.00001, 0.00005, 1.00005, 2.5, -1234.56789, 0.99995, 9.99999, 1e14, 1e16];
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        for _ in 0..200_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let mag = [1e-6, 1e-2, 1.0, 1e3, 1e6, 1e11][(x % 6) as usize];
+            let v = ((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * mag;
+            vals.push(v);
+            // Decimal ties and near-ties, the hard cases.
+            vals.push(((x % 2_000_000) as f64 + 0.5) / 10_000.0);
+        }
+        let (mut fast, mut s) = (0, String::new());
+        for v in vals {
+            s.clear();
+            if fixed4(&mut s, v) {
+                fast += 1;
+                assert_eq!(s, format!("{v:.4}"), "{v:e}");
+            }
+        }
+        // About every random value (the ties fall back, as they must).
+        assert!(fast > 190_000, "fast path taken {fast} times");
     }
 }

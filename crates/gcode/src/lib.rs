@@ -17,6 +17,10 @@
 //!   [`InterpreterConfig::async_m_functions`]), executed before the block's motion;
 //!   `EX<B|W|L|F><0..99>=value` writes an external parameter ([`Canon::ExternalParameter`]),
 //!   executed right after the block's comment, before its M-functions.
+//! * Speed: a line is parsed into reused buffers (plain words straight from the text,
+//!   expressions compiled to postfix instructions), so interpretation allocates nothing
+//!   per line beyond its canonical calls. `benches/interpret.rs` measures lines per
+//!   second; `examples/vs_rs274.rs` times LinuxCNC's `rs274` on the same program.
 #![forbid(unsafe_code)]
 
 mod arc;
@@ -26,9 +30,11 @@ pub mod error;
 mod expr;
 pub mod format;
 mod interp;
+mod params;
 mod parse;
+mod value;
 
 pub use canon::{ArcFeed, Canon, CanonCall, ExArray, ExValue, MSync, MachineMove, Plane, Pose, Units};
 pub use error::{ErrorKind, GcodeError};
-pub use format::{format_canon, format_line, Precision};
+pub use format::{format_canon, format_line, write_canon, write_line, Precision};
 pub use interp::{interpret, interpret_with, Interpreter, InterpreterConfig};

@@ -1,36 +1,54 @@
 //! Line parser: one program line into its N number, O-word, words, parameter assignments,
-//! `EX` external-parameter writes and comments, each with its 1-based column.
+//! `EX` external-parameter writes and comment, each with its 1-based column.
 //!
 //! Like LinuxCNC, spaces and tabs outside comments are ignored everywhere (`X 1 .5` is
 //! `X1.5`) and letters are case-insensitive. `(...)` is a comment (a `(` inside it is the
 //! error "Nested comment found"), `;` starts a comment running to the end of the line,
 //! `(MSG,text)` is a message. A line holding only `%` is a program delimiter.
+//!
+//! The line is first normalised into reused buffers (lower case, without spaces, tabs and
+//! comments, with each byte's column), then read word by word: plain numbers directly,
+//! other values compiled to postfix instructions (see `value.rs`). Once the buffers have
+//! grown, parsing a line allocates nothing (O-word names and error messages aside).
 
 use crate::error::{ErrorKind, KResult};
-use crate::expr::{BinOp, Expr, Func, ParamRef};
+use crate::expr::{self, BinOp, Op, Val};
+use crate::params::Params;
+use crate::value::Cursor;
 
-/// A word: letter and value expression (evaluated when the block is read).
-#[derive(Debug, Clone, PartialEq)]
+mod lex;
+
+/// A word: letter and value (evaluated when the block is read).
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Word {
     pub(crate) letter: u8,
-    pub(crate) value: Expr,
+    pub(crate) value: Val,
     pub(crate) col: u32,
 }
 
+/// The parameter written by `#target=value`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Target {
+    /// `#<value>=`: the value gives the number.
+    Numbered(Val),
+    /// `#<name>=`: byte range of the name in the normalised line.
+    Named(u32, u32),
+}
+
 /// `#target=value`.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Assign {
-    pub(crate) target: ParamRef,
-    pub(crate) value: Expr,
+    pub(crate) target: Target,
+    pub(crate) value: Val,
     pub(crate) col: u32,
 }
 
 /// `EX<array><index>=value`.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct ExWrite {
     pub(crate) array: u8,
     pub(crate) index: u8,
-    pub(crate) value: Expr,
+    pub(crate) value: Val,
     pub(crate) col: u32,
 }
 
@@ -58,19 +76,19 @@ pub(crate) struct OWord {
     pub(crate) name: String,
     pub(crate) kind: OKind,
     /// Condition (if/elseif/while) or return value, or call arguments.
-    pub(crate) args: Vec<Expr>,
+    pub(crate) args: Vec<Val>,
     pub(crate) col: u32,
 }
 
 /// The comment executed with a block (LinuxCNC executes only the last one of a line).
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) enum Remark {
-    Comment(String),
-    Message(String),
+pub(crate) enum Remark<'a> {
+    Comment(&'a str),
+    Message(&'a str),
 }
 
-/// One parsed program line.
-#[derive(Debug, Clone, Default, PartialEq)]
+/// One parsed program line (its buffers are reused from line to line).
+#[derive(Debug, Clone, Default)]
 pub(crate) struct Line {
     pub(crate) block_delete: bool,
     pub(crate) percent: bool,
@@ -79,145 +97,134 @@ pub(crate) struct Line {
     pub(crate) words: Vec<Word>,
     pub(crate) assigns: Vec<Assign>,
     pub(crate) ex: Vec<ExWrite>,
-    pub(crate) remark: Option<Remark>,
+    /// Byte range, in the source text, of the body of the line's last `(...)` comment.
+    comment: Option<(usize, usize)>,
+    /// The normalised line (ASCII, lower case, no spaces, tabs or comments).
+    norm: Vec<u8>,
+    /// 1-based source column (in characters) of each byte of `norm`.
+    cols: Vec<u32>,
+    /// Compiled values (ranges of it are referenced by [`Val::Code`]).
+    ops: Vec<Op>,
+    /// Scratch operator stack of the expression compiler.
+    opstack: Vec<BinOp>,
 }
 
-struct Cursor {
-    chars: Vec<(u8, u32)>,
-    pos: usize,
-    end_col: u32,
-}
-
-impl Cursor {
-    fn peek(&self) -> Option<u8> {
-        self.chars.get(self.pos).map(|c| c.0)
-    }
-    fn peek_at(&self, k: usize) -> Option<u8> {
-        self.chars.get(self.pos + k).map(|c| c.0)
-    }
-    fn col(&self) -> u32 {
-        self.chars.get(self.pos).map_or(self.end_col, |c| c.1)
-    }
-    fn bump(&mut self) {
-        self.pos += 1;
-    }
-    fn eat(&mut self, c: u8) -> bool {
-        if self.peek() == Some(c) {
-            self.pos += 1;
-            true
-        } else {
-            false
-        }
-    }
-    fn eat_str(&mut self, s: &str) -> bool {
-        let ok = s.bytes().enumerate().all(|(k, b)| self.peek_at(k) == Some(b));
-        if ok {
-            self.pos += s.len();
-        }
-        ok
-    }
-    fn alpha_run(&mut self) -> String {
-        let mut s = String::new();
-        while let Some(c) = self.peek().filter(u8::is_ascii_alphabetic) {
-            s.push(char::from(c));
-            self.bump();
-        }
-        s
-    }
-}
-
-/// Parses one line (`text` without its line terminator).
+/// Parses one line (`text` without its line terminator) into a new [`Line`].
 pub(crate) fn parse_line(text: &str) -> KResult<Line> {
     let mut line = Line::default();
-    if text.trim() == "%" {
-        line.percent = true;
-        return Ok(line);
-    }
-    let mut chars = Vec::with_capacity(text.len());
-    let mut it = text.chars().zip(1u32..).peekable();
-    let mut first = true;
-    while let Some((c, col)) = it.next() {
-        match c {
-            ' ' | '\t' | '\r' => {}
-            '/' if first => line.block_delete = true,
-            ';' => break,
-            '(' => {
-                let mut body = String::new();
-                let mut closed = false;
-                for (c2, col2) in it.by_ref() {
-                    match c2 {
-                        ')' => {
-                            closed = true;
-                            break;
-                        }
-                        '(' => return Err((col2, ErrorKind::NestedComment)),
-                        _ => body.push(c2),
-                    }
-                }
-                if !closed {
-                    return Err((col, ErrorKind::UnclosedComment));
-                }
-                line.remark = Some(remark(body));
-            }
-            c if c.is_ascii() => {
-                // ASCII, so the cast is exact.
-                chars.push((c.to_ascii_lowercase() as u8, col));
-            }
-            other => return Err((col, ErrorKind::BadCharacter(other))),
-        }
-        if c != ' ' && c != '\t' {
-            first = false;
-        }
-    }
-    let end_col = chars.last().map_or(1, |c: &(u8, u32)| c.1.saturating_add(1));
-    let mut cur = Cursor { chars, pos: 0, end_col };
-    if cur.peek() == Some(b'n') {
-        let col = cur.col();
-        cur.bump();
-        let v = read_number(&mut cur, b'n')?;
-        if v < 0.0 || v.fract() != 0.0 || v > f64::from(u32::MAX) {
-            return Err((col, ErrorKind::BadNumber));
-        }
-        // Non-negative integer below 2^32: exact.
-        line.n = Some(v as u32);
-    }
-    if cur.peek() == Some(b'o') {
-        line.oword = Some(read_oword(&mut cur)?);
-        if cur.peek().is_some() {
-            return Err((cur.col(), ErrorKind::OWord("unexpected text after O-word".into())));
-        }
-        return Ok(line);
-    }
-    while let Some(c) = cur.peek() {
-        let col = cur.col();
-        if c == b'#' {
-            cur.bump();
-            let target = read_param_ref(&mut cur)?;
-            if !cur.eat(b'=') {
-                return Err((cur.col(), ErrorKind::BadExpression("'=' expected")));
-            }
-            let value = read_real_value(&mut cur, b'=')?;
-            line.assigns.push(Assign { target, value, col });
-        } else if c == b'e' && cur.peek_at(1) == Some(b'x') {
-            cur.pos += 2;
-            line.ex.push(read_ex(&mut cur, col)?);
-        } else if c.is_ascii_alphabetic() {
-            cur.bump();
-            let value = read_real_value(&mut cur, c.to_ascii_uppercase())?;
-            line.words.push(Word { letter: c.to_ascii_uppercase(), value, col });
-        } else {
-            return Err((col, ErrorKind::BadCharacter(char::from(c))));
-        }
-    }
+    line.parse(text)?;
     Ok(line)
 }
 
-fn remark(body: String) -> Remark {
-    let t = body.trim_start();
-    if t.len() >= 4 && t.get(..4).is_some_and(|p| p.eq_ignore_ascii_case("msg,")) {
-        Remark::Message(t.get(4..).unwrap_or("").to_owned())
-    } else {
-        Remark::Comment(body)
+impl Line {
+    /// Does the line hold anything besides its N number (words, comment, O-word...)?
+    pub(crate) fn has_content(&self) -> bool {
+        self.oword.is_some()
+            || !self.words.is_empty()
+            || !self.assigns.is_empty()
+            || !self.ex.is_empty()
+            || self.comment.is_some()
+    }
+
+    /// The comment or message of the line (`text` is the line it was parsed from).
+    #[inline]
+    pub(crate) fn remark<'t>(&self, text: &'t str) -> Option<Remark<'t>> {
+        let body = self.comment.and_then(|(a, b)| text.get(a..b))?;
+        let t = body.trim_start();
+        Some(if t.get(..4).is_some_and(|p| p.eq_ignore_ascii_case("msg,")) {
+            Remark::Message(t.get(4..).unwrap_or(""))
+        } else {
+            Remark::Comment(body)
+        })
+    }
+
+    /// The parameter name of a [`Target::Named`].
+    pub(crate) fn name(&self, start: u32, end: u32) -> &str {
+        expr::name(&self.norm, start, end)
+    }
+
+    /// Evaluates a value of this line; errors are placed at `col`.
+    #[inline]
+    pub(crate) fn eval(&self, params: &Params, stack: &mut Vec<f64>, v: Val, col: u32) -> KResult<f64> {
+        match v {
+            Val::Num(x) => Ok(x),
+            Val::Code(a, b) => {
+                let ops = self.ops.get(a as usize..b as usize).unwrap_or(&[]);
+                expr::run(params, stack, ops, &self.norm).map_err(|k| (col, k))
+            }
+        }
+    }
+
+    /// Parses `text` (without its line terminator) into this line, reusing its buffers.
+    pub(crate) fn parse(&mut self, text: &str) -> KResult<()> {
+        self.block_delete = false;
+        self.percent = false;
+        self.n = None;
+        self.oword = None;
+        self.words.clear();
+        self.assigns.clear();
+        self.ex.clear();
+        self.comment = None;
+        self.ops.clear();
+        if self.parse_plain(text) {
+            return Ok(());
+        }
+        self.parse_general(text)
+    }
+
+    /// The general path of [`Line::parse`] (`ops` must be empty).
+    fn parse_general(&mut self, text: &str) -> KResult<()> {
+        self.n = None;
+        self.words.clear();
+        if text.trim() == "%" {
+            self.percent = true;
+            return Ok(());
+        }
+        self.normalize(text)?;
+        let mut cur = Cursor::new(&self.norm, &self.cols, &mut self.ops, &mut self.opstack);
+        if cur.peek() == Some(b'n') {
+            let col = cur.col();
+            cur.bump();
+            let v = cur.number(b'n')?;
+            if v < 0.0 || v.fract() != 0.0 || v > f64::from(u32::MAX) {
+                return Err((col, ErrorKind::BadNumber));
+            }
+            // Non-negative integer below 2^32: exact.
+            self.n = Some(v as u32);
+        }
+        if cur.peek() == Some(b'o') {
+            self.oword = Some(read_oword(&mut cur)?);
+            if cur.peek().is_some() {
+                return Err((cur.col(), ErrorKind::OWord("unexpected text after O-word".into())));
+            }
+            return Ok(());
+        }
+        while let Some(c) = cur.peek() {
+            let col = cur.col();
+            if c == b'#' {
+                cur.bump();
+                let target = match cur.param_target()? {
+                    Ok(v) => Target::Numbered(v),
+                    Err((a, b)) => Target::Named(a, b),
+                };
+                if !cur.eat(b'=') {
+                    return Err((cur.col(), ErrorKind::BadExpression("'=' expected")));
+                }
+                let value = cur.value(b'=')?;
+                self.assigns.push(Assign { target, value, col });
+            } else if c == b'e' && cur.peek_at(1) == Some(b'x') {
+                cur.pos += 2;
+                self.ex.push(read_ex(&mut cur, col)?);
+            } else if c.is_ascii_alphabetic() {
+                cur.bump();
+                let letter = c.to_ascii_uppercase();
+                let value = cur.value(letter)?;
+                self.words.push(Word { letter, value, col });
+            } else {
+                return Err((col, ErrorKind::BadCharacter(char::from(c))));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -243,40 +250,52 @@ fn read_ex(cur: &mut Cursor, col: u32) -> KResult<ExWrite> {
     if !cur.eat(b'=') {
         return Err((cur.col(), ErrorKind::BadExternal("'=' expected")));
     }
-    let value = read_real_value(cur, b'=')?;
+    let value = cur.value(b'=')?;
     Ok(ExWrite { array, index: u8::try_from(index).unwrap_or(0), value, col })
+}
+
+fn okind(kw: &[u8]) -> Option<OKind> {
+    Some(match kw {
+        b"sub" => OKind::Sub,
+        b"endsub" => OKind::EndSub,
+        b"call" => OKind::Call,
+        b"return" => OKind::Return,
+        b"if" => OKind::If,
+        b"elseif" => OKind::ElseIf,
+        b"else" => OKind::Else,
+        b"endif" => OKind::EndIf,
+        b"while" => OKind::While,
+        b"endwhile" => OKind::EndWhile,
+        b"do" => OKind::Do,
+        b"break" => OKind::Break,
+        b"continue" => OKind::Continue,
+        _ => return None,
+    })
 }
 
 fn read_oword(cur: &mut Cursor) -> KResult<OWord> {
     let col = cur.col();
     cur.bump();
+    let text = |cur: &Cursor, (a, b): (usize, usize)| {
+        String::from_utf8_lossy(cur.s.get(a..b).unwrap_or(&[])).into_owned()
+    };
     let name = if cur.eat(b'<') {
-        let mut n = String::from("<");
-        loop {
-            match cur.peek() {
-                Some(b'>') => {
-                    cur.bump();
-                    break;
-                }
-                Some(c) => {
-                    n.push(char::from(c));
-                    cur.bump();
-                }
-                None => return Err((cur.col(), ErrorKind::OWord("unclosed O-word name".into()))),
-            }
-        }
-        n.push('>');
-        n
+        let Some(range) = cur.until(b'>') else {
+            cur.pos = cur.s.len();
+            return Err((cur.col(), ErrorKind::OWord("unclosed O-word name".into())));
+        };
+        cur.bump();
+        format!("<{}>", text(cur, range))
     } else {
-        let mut n = String::new();
-        while let Some(d) = cur.peek().filter(u8::is_ascii_digit) {
-            n.push(char::from(d));
+        let start = cur.pos;
+        while cur.peek().is_some_and(|d| d.is_ascii_digit()) {
             cur.bump();
         }
-        if n.is_empty() {
+        if cur.pos == start {
             return Err((cur.col(), ErrorKind::OWord("O-word number or <name> expected".into())));
         }
         // o0100 and o100 are the same.
+        let n = text(cur, (start, cur.pos));
         let t = n.trim_start_matches('0');
         if t.is_empty() {
             "0".to_owned()
@@ -286,33 +305,20 @@ fn read_oword(cur: &mut Cursor) -> KResult<OWord> {
     };
     let kcol = cur.col();
     let kw = cur.alpha_run();
-    let kind = match kw.as_str() {
-        "sub" => OKind::Sub,
-        "endsub" => OKind::EndSub,
-        "call" => OKind::Call,
-        "return" => OKind::Return,
-        "if" => OKind::If,
-        "elseif" => OKind::ElseIf,
-        "else" => OKind::Else,
-        "endif" => OKind::EndIf,
-        "while" => OKind::While,
-        "endwhile" => OKind::EndWhile,
-        "do" => OKind::Do,
-        "break" => OKind::Break,
-        "continue" => OKind::Continue,
-        _ => return Err((kcol, ErrorKind::OWord(format!("unknown O-word keyword '{kw}'")))),
-    };
+    let kind = okind(cur.s.get(kw.0..kw.1).unwrap_or(&[]))
+        .ok_or_else(|| (kcol, ErrorKind::OWord(format!("unknown O-word keyword '{}'", text(cur, kw)))))?;
     let mut args = Vec::new();
     match kind {
         OKind::If | OKind::ElseIf | OKind::While => {
             if cur.peek() != Some(b'[') {
-                return Err((cur.col(), ErrorKind::OWord(format!("[condition] expected after {kw}"))));
+                let msg = format!("[condition] expected after {}", text(cur, kw));
+                return Err((cur.col(), ErrorKind::OWord(msg)));
             }
-            args.push(read_real_value(cur, b'o')?);
+            args.push(cur.value(b'o')?);
         }
         OKind::Call | OKind::Return | OKind::EndSub => {
             while cur.peek().is_some() {
-                args.push(read_real_value(cur, b'o')?);
+                args.push(cur.value(b'o')?);
             }
             if kind != OKind::Call && args.len() > 1 {
                 return Err((kcol, ErrorKind::OWord("one return value at most".into())));
@@ -323,246 +329,14 @@ fn read_oword(cur: &mut Cursor) -> KResult<OWord> {
     Ok(OWord { name, kind, args, col })
 }
 
-/// After `#`: `<name>` or a value giving the number.
-fn read_param_ref(cur: &mut Cursor) -> KResult<ParamRef> {
-    if cur.eat(b'<') {
-        let mut n = String::new();
-        loop {
-            match cur.peek() {
-                Some(b'>') => {
-                    cur.bump();
-                    break;
-                }
-                Some(c) => {
-                    n.push(char::from(c));
-                    cur.bump();
-                }
-                None => return Err((cur.col(), ErrorKind::BadExpression("unclosed #<name>"))),
-            }
-        }
-        if n.is_empty() {
-            return Err((cur.col(), ErrorKind::BadExpression("empty parameter name")));
-        }
-        return Ok(ParamRef::Named(n));
-    }
-    Ok(ParamRef::Numbered(Box::new(read_real_value(cur, b'#')?)))
-}
-
-fn read_number(cur: &mut Cursor, after: u8) -> KResult<f64> {
-    let start = cur.pos;
-    let col = cur.col();
-    let mut neg = false;
-    if let Some(c @ (b'+' | b'-')) = cur.peek() {
-        neg = c == b'-';
-        cur.bump();
-    }
-    // Exact fast path (Clinger): an integer mantissa below 2^53 divided by an exact power
-    // of ten is correctly rounded, the same result as `str::parse`.
-    let mut mantissa: u64 = 0;
-    let mut digits = 0u32;
-    let mut frac = 0u32;
-    let mut dot = false;
-    let mut slow = false;
-    while let Some(c) = cur.peek() {
-        if c.is_ascii_digit() {
-            digits += 1;
-            if dot {
-                frac += 1;
-            }
-            match mantissa.checked_mul(10).and_then(|m| m.checked_add(u64::from(c - b'0'))) {
-                Some(m) if m < (1 << 53) => mantissa = m,
-                _ => slow = true,
-            }
-        } else if c == b'.' && !dot {
-            dot = true;
-        } else {
-            break;
-        }
-        cur.bump();
-    }
-    if digits == 0 {
-        cur.pos = start;
-        if cur.peek().is_none() {
-            return Err((col, ErrorKind::MissingValue(char::from(after))));
-        }
-        return Err((col, ErrorKind::BadNumber));
-    }
-    const POW10: [f64; 23] = [
-        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17,
-        1e18, 1e19, 1e20, 1e21, 1e22,
-    ];
-    let v = match POW10.get(frac as usize) {
-        // mantissa < 2^53: exact in f64.
-        Some(p) if !slow => mantissa as f64 / p,
-        _ => {
-            let s: String =
-                cur.chars.get(start..cur.pos).unwrap_or(&[]).iter().map(|c| char::from(c.0)).collect();
-            return s.parse::<f64>().map_err(|_| (col, ErrorKind::BadNumber));
-        }
-    };
-    Ok(if neg { -v } else { v })
-}
-
-/// A value: number, `[expression]`, `#parameter`, `function[..]` or a signed one of those.
-fn read_real_value(cur: &mut Cursor, after: u8) -> KResult<Expr> {
-    read_value_depth(cur, after, 0)
-}
-
-fn read_value_depth(cur: &mut Cursor, after: u8, depth: u32) -> KResult<Expr> {
-    if depth > 64 {
-        return Err((cur.col(), ErrorKind::BadExpression("nested too deeply")));
-    }
-    let col = cur.col();
-    match cur.peek() {
-        None => Err((col, ErrorKind::MissingValue(char::from(after.to_ascii_uppercase())))),
-        Some(b'[') => {
-            cur.bump();
-            let e = read_expression(cur, depth + 1)?;
-            Ok(e)
-        }
-        Some(b'#') => {
-            cur.bump();
-            if depth > 32 {
-                return Err((col, ErrorKind::BadExpression("nested too deeply")));
-            }
-            Ok(Expr::Param(read_param_ref_depth(cur, depth + 1)?))
-        }
-        Some(b'-' | b'+') if !matches!(cur.peek_at(1), Some(b'0'..=b'9' | b'.')) => {
-            let neg = cur.peek() == Some(b'-');
-            cur.bump();
-            let v = read_value_depth(cur, after, depth + 1)?;
-            Ok(if neg { Expr::Neg(Box::new(v)) } else { v })
-        }
-        Some(c) if c.is_ascii_alphabetic() => {
-            let name = cur.alpha_run();
-            if name == "exists" {
-                if !(cur.eat(b'[') && cur.eat(b'#') && cur.eat(b'<')) {
-                    return Err((col, ErrorKind::BadExpression("EXISTS[#<name>] expected")));
-                }
-                let mut n = String::new();
-                while let Some(c) = cur.peek().filter(|&c| c != b'>') {
-                    n.push(char::from(c));
-                    cur.bump();
-                }
-                if !(cur.eat(b'>') && cur.eat(b']')) {
-                    return Err((col, ErrorKind::BadExpression("EXISTS[#<name>] expected")));
-                }
-                return Ok(Expr::Exists(n));
-            }
-            if name == "atan" {
-                if !cur.eat(b'[') {
-                    return Err((cur.col(), ErrorKind::BadExpression("'[' expected after ATAN")));
-                }
-                let a = read_expression(cur, depth + 1)?;
-                if !(cur.eat(b'/') && cur.eat(b'[')) {
-                    return Err((cur.col(), ErrorKind::BadExpression("ATAN[a]/[b] expected")));
-                }
-                let b = read_expression(cur, depth + 1)?;
-                return Ok(Expr::Atan(Box::new(a), Box::new(b)));
-            }
-            let f = Func::from_name(&name).ok_or((col, ErrorKind::UnknownOperation(name)))?;
-            if !cur.eat(b'[') {
-                return Err((cur.col(), ErrorKind::BadExpression("'[' expected after function")));
-            }
-            let a = read_expression(cur, depth + 1)?;
-            Ok(Expr::Func(f, Box::new(a)))
-        }
-        Some(_) => Ok(Expr::Num(read_number(cur, after)?)),
-    }
-}
-
-fn read_param_ref_depth(cur: &mut Cursor, depth: u32) -> KResult<ParamRef> {
-    if cur.peek() == Some(b'<') {
-        return read_param_ref(cur);
-    }
-    Ok(ParamRef::Numbered(Box::new(read_value_depth(cur, b'#', depth)?)))
-}
-
-fn read_op(cur: &mut Cursor) -> KResult<Option<BinOp>> {
-    let col = cur.col();
-    let op = match cur.peek() {
-        Some(b']') => {
-            cur.bump();
-            return Ok(None);
-        }
-        None => return Err((col, ErrorKind::BadExpression("unclosed '['"))),
-        Some(b'*') => {
-            if cur.eat_str("**") {
-                return Ok(Some(BinOp::Pow));
-            }
-            BinOp::Mul
-        }
-        Some(b'/') => BinOp::Div,
-        Some(b'+') => BinOp::Add,
-        Some(b'-') => BinOp::Sub,
-        Some(_) => {
-            let table = [
-                ("mod", BinOp::Mod),
-                ("eq", BinOp::Eq),
-                ("ne", BinOp::Ne),
-                ("gt", BinOp::Gt),
-                ("ge", BinOp::Ge),
-                ("lt", BinOp::Lt),
-                ("le", BinOp::Le),
-                ("and", BinOp::And),
-                ("or", BinOp::Or),
-                ("xor", BinOp::Xor),
-            ];
-            for (s, op) in table {
-                if cur.eat_str(s) {
-                    return Ok(Some(op));
-                }
-            }
-            return Err((
-                col,
-                ErrorKind::UnknownOperation(char::from(cur.peek().unwrap_or(b'?')).to_string()),
-            ));
-        }
-    };
-    cur.bump();
-    Ok(Some(op))
-}
-
-/// After `[`: values and operators up to the matching `]`, with LinuxCNC's precedence
-/// (left to right within one level).
-fn read_expression(cur: &mut Cursor, depth: u32) -> KResult<Expr> {
-    let mut values = vec![read_value_depth(cur, b'[', depth)?];
-    let mut ops: Vec<BinOp> = Vec::new();
-    loop {
-        let next = read_op(cur)?;
-        // Reduce while the stacked operator binds at least as tightly as the next one.
-        while let Some(&top) = ops.last() {
-            if next.is_some_and(|n| n.precedence() > top.precedence()) {
-                break;
-            }
-            ops.pop();
-            let r = values.pop();
-            let l = values.pop();
-            match (l, r) {
-                (Some(l), Some(r)) => values.push(Expr::Bin(top, Box::new(l), Box::new(r))),
-                _ => return Err((cur.col(), ErrorKind::BadExpression("operand missing"))),
-            }
-        }
-        match next {
-            None => break,
-            Some(op) => {
-                ops.push(op);
-                values.push(read_value_depth(cur, b'[', depth)?);
-            }
-        }
-    }
-    values.pop().ok_or((cur.col(), ErrorKind::BadExpression("empty expression")))
-}
-
 #[cfg(test)]
 mod tests {
     #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
     use super::*;
-    use crate::expr::Params;
 
     fn val(s: &str) -> f64 {
         let l = parse_line(&format!("X{s}")).unwrap();
-        Params::default().eval(&l.words[0].value).unwrap()
+        l.eval(&Params::default(), &mut Vec::new(), l.words[0].value, 1).unwrap()
     }
 
     #[test]
@@ -586,10 +360,21 @@ mod tests {
     #[test]
     fn comments_and_columns() {
         assert_eq!(parse_line("G1 (a (b))").unwrap_err(), (7, ErrorKind::NestedComment));
-        let l = parse_line("n10 g1 x 1 (msg,hi) ; rest").unwrap();
+        let text = "n10 g1 x 1 (msg,hi) ; rest";
+        let l = parse_line(text).unwrap();
         assert_eq!(l.n, Some(10));
         assert_eq!(l.words[1].col, 8);
-        assert_eq!(l.remark, Some(Remark::Message("hi".into())));
+        assert_eq!(l.remark(text), Some(Remark::Message("hi")));
+        // Columns count characters: the 2-byte 'é' in the comment is one column (by hand:
+        // '(' 1, 'é' 2, ')' 3, ' ' 4, 'G' 5, '1' 6, ' ' 7, then '€' or 'X' at 8; a missing
+        // value is reported just after the last character, 9).
+        assert_eq!(parse_line("(é) G1 €").unwrap_err(), (8, ErrorKind::BadCharacter('€')));
+        assert_eq!(parse_line("(é) G1 X").unwrap_err(), (9, ErrorKind::MissingValue('X')));
+        // A plain number is read directly; a bracketed lone number too.
+        let l = parse_line("X[5] Y-.5 Z#1").unwrap();
+        assert_eq!(l.words[0].value, Val::Num(5.0));
+        assert_eq!(l.words[1].value, Val::Num(-0.5));
+        assert!(matches!(l.words[2].value, Val::Code(0, 1)));
     }
 
     #[test]

@@ -134,8 +134,11 @@ pub fn run_scenario(
         })
     };
 
-    let mut b =
-        Segment::builder().config(config).mn_link(mn_link).program(Box::new(CamProgram::new(axes.clone())));
+    let mut b = Segment::builder()
+        .config(config)
+        .spin_cns(config.spin_for_pres)
+        .mn_link(mn_link)
+        .program(Box::new(CamProgram::new(axes.clone())));
     for ((node, link), axis) in NODES.iter().zip(cn_links).zip(&axes) {
         b = b.drive(*node, link, drive_params(axis));
     }
@@ -185,6 +188,11 @@ pub fn run_scenario(
     );
     for m in misses.iter().take(20) {
         eprintln!("{label}: miss {m}");
+    }
+    // Every miss, one per line, in a report file.
+    let report = std::env::temp_dir().join(format!("motus-epl-misses-{}.txt", label.replace(' ', "-")));
+    if std::fs::write(&report, misses.join("\n")).is_ok() {
+        eprintln!("{label}: all {} node misses listed in {}", misses.len(), report.display());
     }
     // Quick stop. The first PRes whose status word shows the quick-stop bit (set when the
     // drive received the flag in its PReq) gives position p_q and speed v_q; braking starts at

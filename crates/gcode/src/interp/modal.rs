@@ -1,0 +1,295 @@
+//! Modal state changes of a block, in LinuxCNC's order of execution: feed mode, F, S,
+//! spindle, coolant, the seed's M-functions, dwell, plane, units, coordinate system,
+//! distance modes, G10/G92, motion, stops and the program-end reset.
+
+use super::motion::Motion;
+use super::{origin_param, Interpreter};
+use crate::block::{g, Block};
+use crate::canon::{Canon, MSync, Plane, Pose, Units};
+use crate::error::{ErrorKind, KResult};
+
+impl Interpreter<'_> {
+    /// Executes the block's words (the line's assignments, comment and EX writes are done).
+    pub(super) fn execute_block(&mut self, b: &Block) -> KResult<()> {
+        let gcode = |grp: usize| b.g.get(grp).copied().flatten();
+        if let Some((code, col)) = gcode(5) {
+            if code != g::G94 {
+                return Err((col, ErrorKind::UnsupportedFeedMode(f64::from(code) / 10.0)));
+            }
+            self.emit(Canon::SetFeedMode);
+            self.emit(Canon::SetFeedRate { rate: 0.0 });
+            self.feed = 0.0;
+            self.feed_mm = 0.0;
+        }
+        if let Some(f) = b.f {
+            if f < 0.0 {
+                return Err((b.first_col, ErrorKind::NegativeFeed));
+            }
+            self.feed = f;
+            self.feed_mm = f * self.units.mm_per_unit();
+            self.emit(Canon::SetFeedRate { rate: f });
+        }
+        if let Some(s) = b.s {
+            if s < 0.0 {
+                return Err((b.first_col, ErrorKind::NegativeSpindle));
+            }
+            self.emit(Canon::SetSpindleSpeed { rpm: s });
+        }
+        match b.m_spindle {
+            Some(3) => self.emit(Canon::StartSpindleClockwise),
+            Some(4) => self.emit(Canon::StartSpindleCounterclockwise),
+            Some(_) => self.emit(Canon::StopSpindleTurning),
+            None => {}
+        }
+        match b.m_coolant {
+            Some(7) => self.emit(Canon::MistOn),
+            Some(8) => self.emit(Canon::FloodOn),
+            Some(_) => {
+                self.emit(Canon::MistOff);
+                self.emit(Canon::FloodOff);
+            }
+            None => {}
+        }
+        for &(m, _) in &b.m_user {
+            let sync = if self.config.async_m_functions.contains(&m) { MSync::Async } else { MSync::Sync };
+            self.emit(Canon::MFunction { number: m, sync });
+        }
+        if let Some((_, col)) = gcode(0).filter(|(c, _)| *c == g::G4) {
+            let p = b.p.ok_or((col, ErrorKind::DwellMissing))?;
+            if p < 0.0 {
+                return Err((col, ErrorKind::NegativeDwell));
+            }
+            self.emit(Canon::Dwell { seconds: p });
+        }
+        if let Some((code, _)) = gcode(2) {
+            self.plane = match code {
+                g::G17 => Plane::Xy,
+                g::G18 => Plane::Xz,
+                _ => Plane::Yz,
+            };
+            self.emit(Canon::SelectPlane { plane: self.plane });
+        }
+        if let Some((code, _)) = gcode(6) {
+            self.set_units(if code == g::G20 { Units::Inch } else { Units::Mm });
+        }
+        if let Some((code, _)) = gcode(12) {
+            let k = match code {
+                540 => 0,
+                550 => 1,
+                560 => 2,
+                570 => 3,
+                580 => 4,
+                590 => 5,
+                591 => 6,
+                592 => 7,
+                _ => 8,
+            };
+            // LinuxCNC: selecting the active system again emits nothing.
+            if k != self.coord {
+                self.select_coord(k);
+                self.emit(Canon::SetG92Offset { offset: self.g92 });
+                self.emit(Canon::SetXyRotation { degrees: 0.0 });
+            }
+        }
+        if let Some((code, _)) = gcode(3) {
+            self.absolute = code == g::G90;
+        }
+        if let Some((code, _)) = gcode(4) {
+            self.arc_absolute = code == g::G90_1;
+        }
+        let nonmodal = gcode(0);
+        let mut axes_used = false;
+        if let Some((code, col)) = nonmodal {
+            match code {
+                g::G10 => {
+                    axes_used = true;
+                    self.g10(b, col)?;
+                }
+                g::G92 => {
+                    axes_used = true;
+                    if !b.has_axes() {
+                        return Err((col, ErrorKind::G92NoAxes));
+                    }
+                    let mut new = self.g92;
+                    for k in 0..6 {
+                        if let (Some(v), Some(slot), Some(p)) =
+                            (b.axes.get(k).copied().flatten(), new.get_mut(k), self.pos.get(k))
+                        {
+                            *slot = p + *slot - v;
+                        }
+                    }
+                    self.set_g92(new);
+                }
+                g::G92_1 | g::G92_2 => self.set_g92([0.0; 6]),
+                g::G92_3 => {
+                    let mut new = [0.0; 6];
+                    for (k, slot) in new.iter_mut().enumerate() {
+                        *slot = self.params.get(5211 + k);
+                    }
+                    self.set_g92(new);
+                }
+                _ => {}
+            }
+        }
+        let explicit_motion = gcode(1);
+        if axes_used && explicit_motion.is_some_and(|(c, _)| c != g::G80) {
+            return Err((b.first_col, ErrorKind::TwoAxisUsers));
+        }
+        if let Some((code, _)) = explicit_motion {
+            self.motion = match code {
+                g::G0 => Some(Motion::Rapid),
+                g::G1 => Some(Motion::Feed),
+                g::G2 => Some(Motion::Cw),
+                g::G3 => Some(Motion::Ccw),
+                _ => None,
+            };
+        }
+        let g53 = nonmodal.filter(|(c, _)| *c == g::G53);
+        if !axes_used {
+            let arc_words = explicit_motion.is_some_and(|(c, _)| c == g::G2 || c == g::G3)
+                && (b.r.is_some() || b.ijk.iter().any(Option::is_some));
+            // LinuxCNC: an explicit G0/G1 without axis words still moves (to where it is).
+            let bare_straight = explicit_motion.is_some_and(|(c, _)| c == g::G0 || c == g::G1);
+            if b.has_axes() || arc_words || bare_straight {
+                let Some(m) = self.motion else {
+                    return Err((b.axis_col.unwrap_or(b.first_col), ErrorKind::AxisWithoutMotion));
+                };
+                let mcol = explicit_motion.map_or(b.first_col, |(_, c)| c);
+                self.motion(m, b, g53.map(|(_, c)| c), mcol)?;
+            } else if let Some((_, col)) = g53 {
+                return Err((col, ErrorKind::G53WithoutStraight));
+            }
+        }
+        match b.m_stop {
+            Some(0) => self.emit(Canon::ProgramStop),
+            Some(1) => self.emit(Canon::OptionalProgramStop),
+            Some(m) => self.program_end(m == 30),
+            None => {}
+        }
+        Ok(())
+    }
+
+    fn g10(&mut self, b: &Block, col: u32) -> KResult<()> {
+        let l = b.l.ok_or((col, ErrorKind::BadG10("L word missing")))?;
+        let p = b.p.ok_or((col, ErrorKind::BadG10("P word missing")))?;
+        if b.r.is_some() {
+            return Err((col, ErrorKind::BadG10("R (rotation) is not supported")));
+        }
+        let pi = p.round();
+        if (p - pi).abs() > 0.0001 || !(0.0..=9.0).contains(&pi) {
+            return Err((col, ErrorKind::BadG10("P must be 0..=9")));
+        }
+        // 0..=9 checked above; P0 = the active system.
+        let k = if pi == 0.0 { self.coord } else { pi as usize - 1 };
+        let mut new = self.origins.get(k).copied().unwrap_or([0.0; 6]);
+        let cur = self.origin();
+        let l20 = match l.round() as i64 {
+            2 => false,
+            20 => true,
+            _ => return Err((col, ErrorKind::BadG10("only L2 and L20 are supported"))),
+        };
+        for a in 0..6 {
+            if let (Some(v), Some(slot)) = (b.axes.get(a).copied().flatten(), new.get_mut(a)) {
+                *slot = if l20 {
+                    self.pos.get(a).copied().unwrap_or(0.0) + cur.get(a).copied().unwrap_or(0.0) - v
+                } else {
+                    v
+                };
+            }
+        }
+        self.set_origin(k, new);
+        if k == self.coord {
+            self.emit(Canon::SetG5xOffset { index: u8::try_from(k + 1).unwrap_or(1), offset: new });
+            self.emit(Canon::SetXyRotation { degrees: 0.0 });
+        }
+        Ok(())
+    }
+
+    fn program_end(&mut self, pallet: bool) {
+        self.select_coord(0);
+        self.emit(Canon::SetXyRotation { degrees: 0.0 });
+        if self.plane != Plane::Xy {
+            self.plane = Plane::Xy;
+            self.emit(Canon::SelectPlane { plane: Plane::Xy });
+        }
+        self.absolute = true;
+        self.motion = Some(Motion::Feed);
+        self.emit(Canon::SetFeedMode);
+        self.emit(Canon::SetFeedRate { rate: 0.0 });
+        self.feed = 0.0;
+        self.feed_mm = 0.0;
+        self.emit(Canon::StopSpindleTurning);
+        self.emit(Canon::SetSpindleMode);
+        if pallet {
+            self.emit(Canon::PalletShuttle);
+        }
+        self.emit(Canon::ProgramEnd);
+        self.done = true;
+    }
+
+    fn set_g92(&mut self, new: Pose) {
+        // Keep the machine position: pos + g92 is invariant.
+        for k in 0..6 {
+            if let (Some(p), Some(o), Some(n)) = (self.pos.get_mut(k), self.g92.get(k), new.get(k)) {
+                *p += o - n;
+            }
+        }
+        self.g92 = new;
+        for (k, v) in new.iter().enumerate() {
+            self.params.set(5211 + k, *v);
+        }
+        self.params.set(5210, if new.iter().any(|v| *v != 0.0) { 1.0 } else { 0.0 });
+        self.emit(Canon::SetG92Offset { offset: new });
+    }
+
+    fn set_origin(&mut self, k: usize, new: Pose) {
+        if k == self.coord {
+            let old = self.origin();
+            for a in 0..6 {
+                if let (Some(p), Some(o), Some(n)) = (self.pos.get_mut(a), old.get(a), new.get(a)) {
+                    *p += o - n;
+                }
+            }
+        }
+        if let Some(slot) = self.origins.get_mut(k) {
+            *slot = new;
+        }
+        for (a, v) in new.iter().enumerate() {
+            self.params.set(origin_param(k) + a, *v);
+        }
+    }
+
+    fn select_coord(&mut self, k: usize) {
+        let old = self.origin();
+        self.coord = k;
+        let new = self.origin();
+        for a in 0..6 {
+            if let (Some(p), Some(o), Some(n)) = (self.pos.get_mut(a), old.get(a), new.get(a)) {
+                *p += o - n;
+            }
+        }
+        self.params.set(5220, (k + 1) as f64);
+        self.emit(Canon::SetG5xOffset { index: u8::try_from(k + 1).unwrap_or(1), offset: new });
+    }
+
+    fn set_units(&mut self, u: Units) {
+        if u != self.units {
+            let factor = match u {
+                Units::Inch => 1.0 / 25.4,
+                Units::Mm => 25.4,
+            };
+            let scale = |p: &mut Pose| {
+                for v in p.iter_mut().take(3) {
+                    *v *= factor;
+                }
+            };
+            scale(&mut self.pos);
+            scale(&mut self.g92);
+            for o in self.origins.iter_mut() {
+                scale(o);
+            }
+            self.units = u;
+        }
+        self.emit(Canon::UseLengthUnits { units: u });
+    }
+}

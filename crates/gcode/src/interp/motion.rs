@@ -1,0 +1,160 @@
+//! Motion: straight moves (G0/G1, G53) and arcs (G2/G3, I/J/K or R form, helices and
+//! turns), emitted in program units with the same move in machine millimetres.
+
+use super::Interpreter;
+use crate::arc;
+use crate::block::Block;
+use crate::canon::{ArcFeed, Canon, MachineMove, Plane, Pose};
+use crate::error::{ErrorKind, KResult};
+
+/// Modal motion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Motion {
+    Rapid,
+    Feed,
+    Cw,
+    Ccw,
+}
+
+impl Interpreter<'_> {
+    /// Machine millimetres of a program-units pose under the current offsets.
+    pub(super) fn to_machine(&self, p: &Pose) -> Pose {
+        let f = self.units.mm_per_unit();
+        let o = self.origins.get(self.coord).copied().unwrap_or([0.0; 6]);
+        let mut m = [0.0; 6];
+        for (k, slot) in m.iter_mut().enumerate() {
+            let v = p.get(k).copied().unwrap_or(0.0)
+                + o.get(k).copied().unwrap_or(0.0)
+                + self.g92.get(k).copied().unwrap_or(0.0);
+            *slot = if k < 3 { v * f } else { v };
+        }
+        m
+    }
+
+    pub(super) fn origin(&self) -> Pose {
+        self.origins.get(self.coord).copied().unwrap_or([0.0; 6])
+    }
+
+    /// Executes motion `m` with the block's axis words (`g53`: column of a G53 word).
+    pub(super) fn motion(&mut self, m: Motion, b: &Block, g53: Option<u32>, mcol: u32) -> KResult<()> {
+        let start = self.pos;
+        let mut end = start;
+        if let Some(col) = g53 {
+            if !self.absolute {
+                return Err((col, ErrorKind::G53Incremental));
+            }
+            if !matches!(m, Motion::Rapid | Motion::Feed) {
+                return Err((col, ErrorKind::G53WithoutStraight));
+            }
+        }
+        let origin = self.origin();
+        for k in 0..6 {
+            let (Some(v), Some(slot)) = (b.axes.get(k).copied().flatten(), end.get_mut(k)) else {
+                continue;
+            };
+            *slot = if g53.is_some() {
+                v - origin.get(k).copied().unwrap_or(0.0) - self.g92.get(k).copied().unwrap_or(0.0)
+            } else if self.absolute {
+                v
+            } else {
+                *slot + v
+            };
+        }
+        let ms = self.to_machine(&start);
+        let me = self.to_machine(&end);
+        match m {
+            Motion::Rapid => {
+                self.emit_move(Canon::StraightTraverse { end }, MachineMove::Traverse { start: ms, end: me });
+            }
+            Motion::Feed => {
+                if self.feed == 0.0 {
+                    return Err((mcol, ErrorKind::ZeroFeed(1)));
+                }
+                self.emit_move(
+                    Canon::StraightFeed { end },
+                    MachineMove::Feed { start: ms, end: me, feed: self.feed_mm },
+                );
+            }
+            Motion::Cw | Motion::Ccw => {
+                let cw = m == Motion::Cw;
+                if self.feed == 0.0 {
+                    return Err((mcol, ErrorKind::ZeroFeed(if cw { 2 } else { 3 })));
+                }
+                let (f, s, ax) = self.plane.axes();
+                let get = |p: &Pose, k: usize| p.get(k).copied().unwrap_or(0.0);
+                let turns = match b.p {
+                    None => 1,
+                    Some(p) => {
+                        let r = p.round();
+                        if (p - r).abs() > 0.0001 || !(1.0..=1e6).contains(&r) {
+                            return Err((mcol, ErrorKind::ArcBadTurns));
+                        }
+                        // 1..=1e6, exact.
+                        r as i32
+                    }
+                };
+                let st = (get(&start, f), get(&start, s));
+                let en = (get(&end, f), get(&end, s));
+                let centre = if let Some(r) = b.r {
+                    if b.ijk.iter().any(Option::is_some) {
+                        return Err((mcol, ErrorKind::ArcMixedFormat));
+                    }
+                    arc::centre_r(self.units, st, en, r, cw).map_err(|k| (mcol, k))?
+                } else {
+                    // I, J, K index = X, Y, Z index.
+                    if let Some(bad) = (0..3).find(|&k| k == ax && b.ijk.get(k).copied().flatten().is_some())
+                    {
+                        let name = match self.plane {
+                            Plane::Xy => "XY",
+                            Plane::Xz => "XZ",
+                            Plane::Yz => "YZ",
+                        };
+                        return Err((
+                            mcol,
+                            ErrorKind::ArcWrongCentreWord(char::from(b'I' + bad as u8), name),
+                        ));
+                    }
+                    if !b.ijk.iter().any(Option::is_some) {
+                        return Err((mcol, ErrorKind::ArcMissingCentre));
+                    }
+                    let ci = b.ijk.get(f).copied().flatten().unwrap_or(0.0);
+                    let cj = b.ijk.get(s).copied().flatten().unwrap_or(0.0);
+                    arc::centre_ijk(self.units, st, en, (ci, cj), self.arc_absolute).map_err(|k| (mcol, k))?
+                };
+                let rotation = if cw { -turns } else { turns };
+                let arcf = ArcFeed {
+                    first_end: en.0,
+                    second_end: en.1,
+                    first_centre: centre.0,
+                    second_centre: centre.1,
+                    rotation,
+                    axis_end: get(&end, ax),
+                    a: get(&end, 3),
+                    b: get(&end, 4),
+                    c: get(&end, 5),
+                };
+                let mut cpose = start;
+                if let Some(v) = cpose.get_mut(f) {
+                    *v = centre.0;
+                }
+                if let Some(v) = cpose.get_mut(s) {
+                    *v = centre.1;
+                }
+                let mc = self.to_machine(&cpose);
+                self.emit_move(
+                    Canon::ArcFeed(arcf),
+                    MachineMove::Arc {
+                        start: ms,
+                        end: me,
+                        centre: [get(&mc, 0), get(&mc, 1), get(&mc, 2)],
+                        plane: self.plane,
+                        rotation,
+                        feed: self.feed_mm,
+                    },
+                );
+            }
+        }
+        self.pos = end;
+        Ok(())
+    }
+}
