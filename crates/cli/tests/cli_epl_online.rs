@@ -33,7 +33,7 @@ fn rules_1ms(dir: &Path) -> PathBuf {
     let text = std::fs::read_to_string(root().join("crates/safety/examples/juggler.toml")).unwrap();
     let text = text
         .replace("cycle_time = 0.0004", "cycle_time = 0.001")
-        .replace("lease_time = 0.0008", "lease_time = 0.002");
+        .replace("lease_time = 0.0008", "lease_time = 0.005");
     let p = dir.join("juggler.toml");
     std::fs::write(&p, text).unwrap();
     p

@@ -28,7 +28,7 @@ pub fn free_udp_block() -> io::Result<u16> {
 
 /// Writes the demo cell into `dir` with the station listening on `listen`; returns the path
 /// of the cell file. The juggler runs its 1 ms UDP cycle, so its rules get a 1 ms cycle and
-/// a 2 ms lease (the shipped rules are for the real machine's 400 us).
+/// a 5 ms lease (the shipped rules are for the real machine's 400 us).
 pub fn write_demo_cell(dir: &Path, listen: &str) -> io::Result<PathBuf> {
     let programs = dir.join("programs");
     std::fs::create_dir_all(&programs)?;
@@ -38,7 +38,7 @@ pub fn write_demo_cell(dir: &Path, listen: &str) -> io::Result<PathBuf> {
     std::fs::write(programs.join("omni-square.toml"), OMNI_SQUARE)?;
     let rules = motus_safety::JUGGLER_TOML
         .replace("cycle_time = 0.0004", "cycle_time = 0.001")
-        .replace("lease_time = 0.0008", "lease_time = 0.002");
+        .replace("lease_time = 0.0008", "lease_time = 0.005");
     std::fs::write(dir.join("juggler.toml"), &rules)?;
     approve_demo_rules(dir, &rules)?;
     let cell = DEMO_CELL
