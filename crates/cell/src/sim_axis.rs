@@ -60,6 +60,48 @@ fn trapezoid(d: f64, v: f64, a: f64) -> Vec<(f64, f64)> {
 }
 
 /// The simulated axis's state.
+/// Segments from velocity `v0` to rest at distance `d`, cruising at most at `vmax`: slow down
+/// or speed up toward `vmax`, cruise, brake; when `v0` points away from the target or cannot
+/// stop in time, brake to rest first, then move back.
+fn retarget(d: f64, v0: f64, vmax: f64, a: f64) -> Vec<(f64, f64)> {
+    if v0 == 0.0 {
+        return trapezoid(d, vmax, a);
+    }
+    if a <= 0.0 || vmax <= 0.0 {
+        return Vec::new();
+    }
+    let s = v0.signum();
+    let u = v0.abs();
+    let braking = u * u / (2.0 * a);
+    if d * s < braking {
+        // Brake to rest, then go to the target from there.
+        let mut segs = vec![(u / a, -s * a)];
+        segs.extend(trapezoid(d - s * braking, vmax, a));
+        return segs;
+    }
+    let dist = d.abs();
+    // Peak speed: reach vp from u, then brake from vp, within dist.
+    let vp = ((2.0 * a * dist + u * u) / 2.0).sqrt().min(vmax.max(0.0));
+    let mut segs = Vec::new();
+    let (to_peak, d1) = if vp >= u {
+        ((vp - u) / a, (vp * vp - u * u) / (2.0 * a))
+    } else {
+        ((u - vp) / a, (u * u - vp * vp) / (2.0 * a))
+    };
+    if to_peak > 0.0 {
+        segs.push((to_peak, if vp >= u { s * a } else { -s * a }));
+    }
+    let d3 = vp * vp / (2.0 * a);
+    let cruise = dist - d1 - d3;
+    if cruise > 0.0 && vp > 0.0 {
+        segs.push((cruise / vp, 0.0));
+    }
+    if vp > 0.0 {
+        segs.push((vp / a, -s * a));
+    }
+    segs
+}
+
 #[derive(Debug)]
 pub(crate) struct SimState {
     alive: bool,
@@ -131,19 +173,16 @@ impl SimAxis {
         p: &MotionProfile,
         homing: bool,
     ) -> Result<(), AxisError> {
-        let (x, v, moving) = s.update(now);
-        if moving || v != 0.0 {
-            return Err(AxisError::Refused {
-                axis: self.config.name.clone(),
-                command: "move".into(),
-                reason: "the axis is moving: stop it first".into(),
-            });
-        }
+        let (x, v, _) = s.update(now);
         let vmax = p.velocity.unwrap_or(self.config.max_velocity).min(self.config.max_velocity).abs();
+        // A zero profile velocity (the last set-point of a streamed path) means "the default".
+        let vmax = if vmax > 0.0 { vmax } else { self.config.max_velocity.abs() };
         let vmax = if homing { vmax / 2.0 } else { vmax };
         let a =
             p.acceleration.unwrap_or(self.config.max_acceleration).min(self.config.max_acceleration).abs();
-        s.motion = Some(Motion { t0: now, x0: x, v0: 0.0, segments: trapezoid(target - x, vmax, a), homing });
+        // A new target while moving re-plans from the current velocity, like a servo drive
+        // taking a set-point immediately (streamed paths send one every cycle).
+        s.motion = Some(Motion { t0: now, x0: x, v0: v, segments: retarget(target - x, v, vmax, a), homing });
         Ok(())
     }
 

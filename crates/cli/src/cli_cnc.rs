@@ -64,8 +64,9 @@ pub struct GcodeRunArgs {
     /// The program.
     #[command(flatten)]
     pub program: GcodeFileArgs,
-    /// Cell configuration (default: the simulated drilling machine with its default
-    /// parameters).
+    /// Cell configuration: the program also moves the cell's gantry axes (X, Y, Z of its
+    /// `gantry` group, homed first), in real time, planned within their limits. The drilling
+    /// technology is simulated.
     #[arg(long)]
     pub cell: Option<PathBuf>,
     /// Feed override in percent (0..200).

@@ -90,3 +90,32 @@ fn plan_reports_limits_held_and_run_drills_the_seed_program() {
     assert!((holes[2]["depth_mm"].as_f64().unwrap() - 50.0).abs() < 1e-6);
     assert!(out.contains("\"technology\":\"Drill\""), "the drilling state is visible");
 }
+
+#[test]
+fn run_on_a_cell_moves_its_gantry_axes() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cell = String::from("[station]\nname = \"gantry test\"\n");
+    for (axis, max) in [("x", 0.6), ("y", 0.4), ("z", 0.15)] {
+        cell.push_str(&format!(
+            "[[device]]\nname = \"cnc-{axis}\"\nkind = \"sim-axis\"\n\n[[axis]]\nname = \"{axis}\"\ndevice = \"cnc-{axis}\"\nunit = \"m\"\nscale = 1e-6\nlimits = {{ min = 0.0, max = {max} }}\nmax_velocity = 0.1\nmax_acceleration = 1.0\n\n"
+        ));
+    }
+    cell.push_str("[[group]]\nname = \"cnc\"\nkind = \"gantry\"\naxes = [\"x\", \"y\", \"z\"]\n");
+    let cell = write(dir.path(), "cell.toml", &cell);
+    let prog = write(dir.path(), "p.ngc", "G21 G90 F3000\nG1 X40 Y20 Z5\nG1 X60\nM2\n");
+    let o = motus(&["gcode", "run", &prog, "--cell", &cell, "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let last: serde_json::Value =
+        serde_json::from_str(out.lines().rfind(|l| l.contains("\"xyz\"")).unwrap()).unwrap();
+    assert_eq!(last["status"], "done", "{out}");
+    // The real axes (simulated devices of the cell) followed the set-points to the end.
+    let g: serde_json::Value =
+        serde_json::from_str(out.lines().find(|l| l.contains("gantry_mm")).unwrap()).unwrap();
+    for (axis, want) in [("x", 60.0), ("y", 20.0), ("z", 5.0)] {
+        let got = g["gantry_mm"][axis].as_f64().unwrap();
+        assert!((got - want).abs() < 0.01, "{axis}: {got} mm, want {want}");
+    }
+    // Planned within the cell's 100 mm/s: the 60 mm in X take well over 0.6 s.
+    assert!(last["t"].as_f64().unwrap() > 0.6, "{last}");
+}

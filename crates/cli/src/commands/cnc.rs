@@ -3,8 +3,9 @@
 
 use anyhow::{bail, Context, Result};
 use motus_cnc::{DrillingTechnology, Limits3, NoTechnology, ProgramRun, RunStatus};
-use motus_cnc_planner::AxisLimits;
+use motus_cnc_planner::{AxisLimits, AxisSink, METRES_PER_MM};
 use serde_json::json;
+use std::time::Duration;
 
 use super::gcode::{config, read_program};
 use crate::cli_cnc::{GcodePlanArgs, GcodeRunArgs};
@@ -65,16 +66,65 @@ pub fn plan(a: &GcodePlanArgs) -> Result<()> {
     Ok(())
 }
 
-/// `motus gcode run` on the simulated drilling machine.
-pub fn run(a: &GcodeRunArgs) -> Result<()> {
-    if a.cell.is_some() {
-        bail!("--cell: running on a configured cell needs the station (`motus serve`); without --cell the program runs on the simulated drilling machine");
+/// A cell's gantry group (X, Y, Z) and the planner limits of its axes (mm, mm/s, mm/s²).
+fn gantry_of(cell_file: &std::path::Path) -> Result<(motus_station::config::Cell, Vec<String>, Limits3)> {
+    let cell = motus_station::config::load(cell_file).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let group = cell
+        .groups
+        .iter()
+        .find(|g| g.kind == motus_station::config::GroupKind::Gantry)
+        .with_context(|| format!("{}: no [[group]] of kind \"gantry\"", cell_file.display()))?
+        .axes
+        .clone();
+    let mut limits = Limits3::default();
+    for (slot, name) in limits.axes.iter_mut().zip(&group) {
+        let a = cell.axis(name).with_context(|| format!("gantry axis {name} not configured"))?;
+        *slot = AxisLimits { velocity: a.max_velocity * 1000.0, acceleration: a.max_acceleration * 1000.0 };
     }
+    Ok((cell, group, limits))
+}
+
+/// The gantry axes of a cell, homed, as an [`AxisSink`] for the executor.
+fn gantry_sink(
+    cell: &motus_station::config::Cell,
+    group: &[String],
+    run: &ProgramRun<'_>,
+) -> Result<(motus_cell::RunningCell, AxisSink<3>)> {
+    use motus_axis::{wait_until, AxisCommand, WaitOutcome};
+    let running = motus_cell::open_cell(cell, motus_cell::CellOptions::default())?;
+    let mut sink = AxisSink::new(run.executor().planner().config(), 1e-4);
+    for (index, name) in group.iter().enumerate() {
+        let mut axis = running.axis(name).with_context(|| format!("gantry axis {name} not found"))?;
+        axis.execute(&AxisCommand::Enable).ok();
+        axis.execute(&AxisCommand::Home).with_context(|| format!("homing {name}"))?;
+        let WaitOutcome::Done(_) = wait_until(
+            &mut *axis,
+            "homing",
+            Duration::from_secs(60),
+            Duration::from_millis(20),
+            |s| s.flags.homed && !s.flags.moving,
+            |_| {},
+        )
+        .with_context(|| format!("{name}: not homed"))?;
+        sink.map(index, axis, METRES_PER_MM)?;
+    }
+    Ok((running, sink))
+}
+
+/// `motus gcode run` on the simulated drilling machine, optionally moving a cell's gantry.
+pub fn run(a: &GcodeRunArgs) -> Result<()> {
     let src = read_program(&a.program.file)?;
     let mut cfg = config(&a.program);
     cfg.require_program_end = false;
-    let mut run = ProgramRun::new(&src, cfg, Limits3::default(), [0.0; 3])?;
+    let cell = a.cell.as_deref().map(gantry_of).transpose()?;
+    let limits = cell.as_ref().map_or_else(Limits3::default, |(_, _, l)| *l);
+    let mut run = ProgramRun::new(&src, cfg, limits, [0.0; 3])?;
     run.set_override(a.feed_override)?;
+    let mut gantry = match &cell {
+        Some((cell, group, _)) => Some(gantry_sink(cell, group, &run)?),
+        None => None,
+    };
+    let mut next = std::time::Instant::now();
     let mut tech = DrillingTechnology::simulated();
     let stop = super::stop_flag()?;
     let mut last_print = -1.0;
@@ -87,6 +137,18 @@ pub fn run(a: &GcodeRunArgs) -> Result<()> {
             Ok(x) => x,
             Err(e) => break Err(e),
         };
+        if let Some((_, sink)) = gantry.as_mut() {
+            // Real axes: one set-point per cycle, in real time; on doubt, stop them.
+            if let Err(e) = sink.send(&sp) {
+                let _ = sink.stop_all();
+                run.stop();
+                return Err(anyhow::anyhow!("gantry: {e}"));
+            }
+            next += Duration::from_secs_f64(DT);
+            if let Some(wait) = next.checked_duration_since(std::time::Instant::now()) {
+                std::thread::sleep(wait);
+            }
+        }
         let state = tech.info().state.name().to_string();
         let report = run.report();
         if sp.time - last_print >= 0.5 || state != last_state || status == RunStatus::Done {
@@ -123,6 +185,32 @@ pub fn run(a: &GcodeRunArgs) -> Result<()> {
             "{}",
             json!({"hole": i + 1, "x": h.tool_xy[0], "y": h.tool_xy[1], "depth_mm": h.depth, "rpm": h.spindle_rpm, "feed_mm_min": h.feed})
         );
+    }
+    if let (Some((running, _)), Some((_, group, _)), Ok(_)) = (&gantry, &cell, &result) {
+        // In position: the last set-point once more at the axes' own profile (a streamed
+        // path's final set-points carry a near-zero speed), then where the axes ended, in mm.
+        let end = run.executor().path_position();
+        let mut at = serde_json::Map::new();
+        for (name, target) in group.iter().zip(end) {
+            if let Some(mut axis) = running.axis(name) {
+                let settle = motus_axis::AxisCommand::MoveAbsolute {
+                    target: target * METRES_PER_MM,
+                    profile: motus_axis::MotionProfile::default(),
+                };
+                let _ = axis.execute(&settle);
+                let _ = motus_axis::wait_until(
+                    &mut *axis,
+                    "in position",
+                    Duration::from_secs(10),
+                    Duration::from_millis(10),
+                    |s| !s.flags.moving,
+                    |_| {},
+                );
+                let pos = axis.read_state().map(|s| s.position * 1000.0).ok();
+                at.insert(name.clone(), json!(pos));
+            }
+        }
+        println!("{}", json!({ "gantry_mm": at }));
     }
     let report = result?;
     eprintln!("done in {:.3} s program time; {} holes", report.duration, tech.holes().len());
