@@ -22,11 +22,12 @@ use motus_epl::{open_link, Monitor, MonitorConfig};
 use motus_epl_protocol::{NodeValues, Value, ValueMap, ValueSpec, ValueType};
 use motus_safety::predict::Reach;
 use motus_safety::{secret_hash, Approval, Integrity, Mode, RuleSet, Sample, Snapshot};
-use motus_safety_epl::juggler;
+use motus_safety_epl::juggler::{self, Pattern};
 use motus_safety_epl::{EplLeaseTarget, InputMap, OnlineConfig, OnlineEvent, OnlineSupervisor};
 use motus_station::config::{AxisConfig, Supervisor};
 use motus_station::devices::DeviceError;
 
+use crate::juggler_program::{ProgramSelector, SelectedCam};
 use crate::sim::SimControl;
 use crate::{CellError, CellOptions, DeviceCtl};
 
@@ -82,7 +83,12 @@ impl Default for SupervisorSnapshot {
 enum Op {
     StopAll,
     Reset,
+    /// A fresh integrity check of the configuration (rules, approval, key).
+    Integrity(Result<(), String>),
 }
+
+/// How often the configuration's integrity is checked.
+const INTEGRITY_EVERY: Duration = Duration::from_secs(1);
 
 /// What the monitor last saw of one node.
 #[derive(Debug, Clone, Copy)]
@@ -106,6 +112,7 @@ pub struct JugglerHandle {
     views: Views,
     stop: Arc<AtomicBool>,
     threads: Mutex<Vec<JoinHandle<()>>>,
+    program: Option<Arc<ProgramSelector>>,
 }
 
 impl std::fmt::Debug for JugglerHandle {
@@ -130,6 +137,28 @@ impl JugglerHandle {
         let _ = lock(&self.ops).send(Op::Reset);
     }
 
+    /// The program the juggler runs (`None`: not selectable here, e.g. a real machine whose
+    /// controller is programmed on its own).
+    pub fn program(&self) -> Option<Pattern> {
+        self.program.as_ref().map(|p| p.get())
+    }
+
+    /// Loads `pattern` onto the simulated juggler's controller; it runs from the next
+    /// cycle, guarded by the supervisor like any motion.
+    ///
+    /// # Errors
+    /// The juggler's program is not selectable here (no simulated controller).
+    pub fn select_program(&self, pattern: Pattern) -> Result<(), String> {
+        let p = self.program.as_ref().ok_or_else(|| {
+            "the juggler's program runs on its own controller: load it there (only the simulated \
+             juggler's program is selected by the station)"
+                .to_owned()
+        })?;
+        tracing::info!(program = pattern.name(), "juggler: program selected");
+        p.set(pattern);
+        Ok(())
+    }
+
     /// Stops the supervisor and monitor threads.
     pub(crate) fn shutdown(&self) {
         self.stop.store(true, Ordering::Relaxed);
@@ -151,12 +180,18 @@ pub(crate) struct SegmentSim {
     uri: String,
     rules: RuleSet,
     options: CellOptions,
+    program: Arc<ProgramSelector>,
     segment: Option<Segment>,
 }
 
 impl SegmentSim {
-    pub(crate) fn start(uri: &str, rules: RuleSet, options: CellOptions) -> Result<Self, CellError> {
-        let mut s = Self { uri: uri.into(), rules, options, segment: None };
+    pub(crate) fn start(
+        uri: &str,
+        rules: RuleSet,
+        options: CellOptions,
+        program: Arc<ProgramSelector>,
+    ) -> Result<Self, CellError> {
+        let mut s = Self { uri: uri.into(), rules, options, program, segment: None };
         s.spawn()?;
         Ok(s)
     }
@@ -170,11 +205,11 @@ impl SegmentSim {
             pres_timeout: (cycle / 4).clamp(Duration::from_micros(100), Duration::from_micros(300)),
             ..MnConfig::default()
         };
-        let pattern = self.options.juggler_pattern;
+        let pattern = self.program.get();
         let mut b = Segment::builder()
             .config(config)
             .mn_link(join()?)
-            .program(Box::new(juggler::program(&self.rules, pattern)));
+            .program(Box::new(SelectedCam::new(&self.rules, Arc::clone(&self.program))));
         for (node, params) in juggler::drives(&self.rules, pattern, Some(self.options.drive_lease)) {
             b = b.drive(node, join()?, params);
         }
@@ -260,6 +295,7 @@ pub(crate) fn start(
     rules: RuleSet,
     nodes: &[u8],
     options: &CellOptions,
+    program: Option<Arc<ProgramSelector>>,
 ) -> Result<JugglerHandle, CellError> {
     let err = |reason: String| CellError::Simulator { name: uri.into(), reason };
     let watch = (sup.approval.is_some() || sup.key.is_some()).then(|| Watch {
@@ -289,11 +325,32 @@ pub(crate) fn start(
     let stop = Arc::new(AtomicBool::new(false));
     let views: Views = Arc::new(Mutex::new(BTreeMap::new()));
     let mut threads = Vec::new();
+    if let Some(w) = watch {
+        // Reading and hashing the files takes milliseconds: never on the supervisor's thread,
+        // whose lease must be renewed every cycle.
+        let (ops, stop) = (tx.clone(), Arc::clone(&stop));
+        let t = std::thread::Builder::new()
+            .name("juggler-integrity".into())
+            .spawn(move || {
+                let mut last = Instant::now();
+                while !stop.load(Ordering::Relaxed) {
+                    std::thread::sleep(Duration::from_millis(50));
+                    if last.elapsed() >= INTEGRITY_EVERY {
+                        last = Instant::now();
+                        if ops.send(Op::Integrity(w.check())).is_err() {
+                            break;
+                        }
+                    }
+                }
+            })
+            .map_err(|e| err(e.to_string()))?;
+        threads.push(t);
+    }
     {
         let (snap, stop) = (Arc::clone(&snapshot), Arc::clone(&stop));
         let t = std::thread::Builder::new()
             .name("juggler-supervisor".into())
-            .spawn(move || supervise(online, &*link, watch, rx, &snap, &stop))
+            .spawn(move || supervise(online, &*link, rx, &snap, &stop))
             .map_err(|e| err(e.to_string()))?;
         threads.push(t);
     }
@@ -323,34 +380,29 @@ pub(crate) fn start(
             .map_err(|e| err(e.to_string()))?;
         threads.push(t);
     }
-    Ok(JugglerHandle { snapshot, ops: Mutex::new(tx), views, stop, threads: Mutex::new(threads) })
+    Ok(JugglerHandle { snapshot, ops: Mutex::new(tx), views, stop, threads: Mutex::new(threads), program })
 }
 
-/// The supervisor thread: every frame and tick, operator commands, integrity every second.
+/// The supervisor thread: every frame and tick, operator commands and integrity results.
 fn supervise(
     mut sup: OnlineSupervisor,
     link: &dyn motus_epl::EthLink,
-    watch: Option<Watch>,
     ops: Receiver<Op>,
     snapshot: &Mutex<SupervisorSnapshot>,
     stop: &AtomicBool,
 ) {
     let mut buf = vec![0u8; motus_epl::transport::MAX_FRAME];
-    let (mut last_check, mut last_publish) = (Instant::now(), Instant::now());
+    let mut last_publish = Instant::now();
     let names: Vec<String> = sup.supervisor().rules().axes().iter().map(|a| a.name.clone()).collect();
     while !stop.load(Ordering::Relaxed) {
         while let Ok(op) = ops.try_recv() {
             match op {
                 Op::StopAll => sup.stop_all(),
                 Op::Reset => sup.reset(),
-            }
-        }
-        if let Some(w) = &watch {
-            if last_check.elapsed() >= Duration::from_secs(1) {
-                last_check = Instant::now();
-                let r = w.check();
-                sup.set_integrity(r.clone());
-                lock(snapshot).integrity = r;
+                Op::Integrity(r) => {
+                    sup.set_integrity(r.clone());
+                    lock(snapshot).integrity = r;
+                }
             }
         }
         let event = match link.recv(&mut buf, Duration::from_millis(1)) {

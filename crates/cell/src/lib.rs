@@ -24,6 +24,7 @@ mod axis;
 mod cia402;
 mod group;
 pub mod juggler;
+pub mod juggler_program;
 mod kv01;
 mod nfv2;
 mod ps1a;
@@ -38,13 +39,14 @@ use std::time::Duration;
 use motus_axis::Axis;
 use motus_can::socketcand::Hub;
 use motus_safety::Restart;
-use motus_safety_epl::juggler::Pattern;
+pub use motus_safety_epl::juggler::Pattern;
 use motus_station::config::{Cell, DeviceKind, GroupKind, LinkKind};
 use motus_station::devices::{DeviceError, DeviceHandle};
 
 pub use axis::CellAxis;
 pub use group::{ArmGroup, CellGroup, GroupHandle, OmniGroup, PanTiltGroup};
 pub use juggler::{JugglerHandle, SupervisorSnapshot};
+pub use juggler_program::ProgramSelector;
 
 use axis::{new_slot, put, Slot};
 use sim::SimControl;
@@ -278,9 +280,17 @@ pub fn open_cell(cell: &Cell, options: CellOptions) -> Result<RunningCell, CellE
                 let nodes: Vec<u8> =
                     devices.iter().filter_map(|d| d.address.and_then(|a| u8::try_from(a).ok())).collect();
                 // The supervisor first: its leases must be there when the drives go operational.
-                let handle = Arc::new(juggler::start(&link.uri, sup, rules.clone(), &nodes, &options)?);
+                let program = Arc::new(ProgramSelector::new(options.juggler_pattern));
+                let handle = Arc::new(juggler::start(
+                    &link.uri,
+                    sup,
+                    rules.clone(),
+                    &nodes,
+                    &options,
+                    Some(Arc::clone(&program)),
+                )?);
                 rc.juggler = Some(Arc::clone(&handle));
-                Some(Box::new(juggler::SegmentSim::start(&link.uri, rules, options)?))
+                Some(Box::new(juggler::SegmentSim::start(&link.uri, rules, options, program)?))
             }
             DeviceKind::SimAxis => None,
         };

@@ -1,6 +1,8 @@
 //! The HMI in headless Chromium (tests/browser/test_hmi.py, Playwright) against the real
 //! `motus demo`: log in, book a slot, jog an axis and see its position change, run a G-code
-//! program and see its progress, E-stop and see every axis stop. Screenshots go to
+//! program and see its progress, E-stop and see every axis stop, load the juggler program
+//! that aims the thrower beyond its limit and see the supervisor stop it with its diagnosis
+//! (then load the juggling program and reset). Screenshots go to
 //! target/screenshots/demo. Fails (does not skip) when python3, Playwright or chromium is
 //! missing: CI installs them (scripts/install-oracles.sh).
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
@@ -75,6 +77,9 @@ fn hmi_on_the_real_demo_in_headless_chromium() {
         .env("MOTUS_HMI_JOG_AXIS", "y")
         .env("MOTUS_HMI_ESTOP_MOVES", "x:0.8,linear2:0.05")
         .env("MOTUS_HMI_UNSAFE_AXIS", "")
+        .env("MOTUS_HMI_UNSAFE_PROGRAM", "limit")
+        .env("MOTUS_HMI_SAFE_PROGRAM", "juggle")
+        .env("MOTUS_HMI_UNSAFE_RULE", "limits_thrower")
         .env("MOTUS_SCREENSHOTS", &shots)
         .env("MOTUS_BROWSER_DEADLINE", "300")
         .output()
@@ -83,5 +88,5 @@ fn hmi_on_the_real_demo_in_headless_chromium() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     println!("{stdout}\n{stderr}");
     assert!(out.status.success(), "browser test on the demo failed:\n{stdout}\n{stderr}");
-    assert!(stdout.contains("5 passed, 0 failed"), "{stdout}");
+    assert!(stdout.contains("6 passed, 0 failed"), "{stdout}");
 }

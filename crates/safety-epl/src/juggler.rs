@@ -29,6 +29,21 @@ pub enum Pattern {
     Collide,
 }
 
+impl Pattern {
+    /// Every pattern, in the order the HMI lists them.
+    pub const ALL: [Pattern; 3] = [Pattern::Juggle, Pattern::Limit, Pattern::Collide];
+
+    /// The pattern's name (what [`FromStr`] reads).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Pattern::Juggle => "juggle",
+            Pattern::Limit => "limit",
+            Pattern::Collide => "collide",
+        }
+    }
+}
+
 impl FromStr for Pattern {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
@@ -51,7 +66,7 @@ fn cam_units(pattern: Pattern, name: &str) -> (f64, f64, f64) {
         (Pattern::Collide, "vertical_right") => (4000.0, 3000.0, 0.5),
         (_, "vertical_right") => (14_000.0, 2000.0, 0.5),
         (Pattern::Limit, "thrower") => (0.0, 5000.0, 0.75),
-        (_, "thrower") => (-4000.0, 3000.0, 0.25),
+        (_, "thrower") => (-3800.0, 2800.0, 0.25),
         _ => (0.0, 0.0, 0.0),
     }
 }

@@ -4,7 +4,7 @@ use std::sync::atomic::Ordering;
 use std::sync::PoisonError;
 
 use motus_axis::{AxisCommand, Direction, MotionProfile};
-use motus_cell::GroupHandle;
+use motus_cell::{GroupHandle, Pattern};
 use motus_gcode::{interpret_with, InterpreterConfig};
 use motus_station_web::{
     AxisAction, AxisParameters, AxisView, BackendError, Caller, GroupAction, GroupKind, GroupView,
@@ -166,7 +166,7 @@ impl MachineBackend for StationMachine {
             (Ok(()), d) => d.clone(),
         };
         SafetyView {
-            safe_to_run: s.safe_to_run == Some(true) && !estop,
+            safe_to_run: s.safe_to_run == Some(true) && !s.held && !estop,
             held: s.held || estop,
             estop,
             diagnosis: if estop { Some("emergency stop".into()) } else { diagnosis },
@@ -356,6 +356,16 @@ impl MachineBackend for StationMachine {
                     GroupHandle::Axes => GroupKind::Gantry,
                 },
                 axes: g.axes.clone(),
+                programs: match &g.handle {
+                    GroupHandle::Juggler(j) if j.program().is_some() => {
+                        Pattern::ALL.iter().map(|p| p.name().to_owned()).collect()
+                    }
+                    _ => Vec::new(),
+                },
+                program: match &g.handle {
+                    GroupHandle::Juggler(j) => j.program().map(|p| p.name().to_owned()),
+                    _ => None,
+                },
             })
             .collect()
     }
@@ -373,6 +383,15 @@ impl MachineBackend for StationMachine {
                     let _ = self.execute(a, &AxisCommand::Stop);
                 }
                 Ok(())
+            }
+            GroupAction::Run { program } => {
+                let GroupHandle::Juggler(j) = &g.handle else {
+                    return Err(BackendError::State(format!("group {group} has no programs to run")));
+                };
+                let pattern: Pattern =
+                    program.parse().map_err(|e: String| BackendError::invalid("program", e))?;
+                tracing::info!(user = %caller.user, program = pattern.name(), "juggler program");
+                j.select_program(pattern).map_err(BackendError::State)
             }
             GroupAction::GoTo { targets } => {
                 if matches!(g.handle, GroupHandle::Omni(_) | GroupHandle::Juggler(_)) {

@@ -151,7 +151,7 @@ function buildAxes(axes) {
     rows.append(el('tr', { 'data-testid': `axis-${a.id}` },
       el('td', { text: `${a.name} [${a.unit}]` }), el('td', { text: a.device, class: 'small' }),
       el('td', { class: 'num', id: `pos-${a.id}`, 'data-testid': `axis-pos-${a.id}` }),
-      el('td', { class: 'num', id: `vel-${a.id}`, 'data-testid': `axis-vel-${a.id}` }),
+      el('td', { class: 'num', id: `vel-${a.id}`, 'data-testid': `axis-vel-${a.id}`, 'data-group': a.group || '' }),
       el('td', { id: `state-${a.id}`, 'data-testid': `axis-state-${a.id}` }),
       el('td', { id: `fault-${a.id}`, class: 'error' }),
       el('td', {}, jogBtn(-1, '-'), ' ', jogBtn(1, '+')),
@@ -317,7 +317,17 @@ function robotClick(ev) {
 }
 
 // ---------- groups (pan-tilt, arm) ----------
-async function loadGroups() { try { S.groups = await api('GET', '/api/groups'); } catch (_) { S.groups = []; } }
+async function loadGroups() { try { S.groups = await api('GET', '/api/groups'); } catch (_) { S.groups = []; } buildJuggler(); }
+
+// The juggler's programs (a student's program is guarded by the supervisor like any motion).
+function buildJuggler() {
+  const g = S.groups.find((x) => x.programs && x.programs.length); $('juggler-box').hidden = !g;
+  if (!g) return;
+  const sel = $('juggler-program'); const keep = sel.value; sel.replaceChildren();
+  for (const p of g.programs) sel.append(el('option', { value: p, text: p }));
+  if (g.programs.includes(keep)) sel.value = keep;
+  $('juggler-current').textContent = g.program || '-';
+}
 
 function buildArm(axes) {
   const g = S.groups.find((x) => x.kind === 'arm'); const box = $('arm-sliders'); box.replaceChildren();
@@ -431,6 +441,11 @@ function wire() {
   $('arm-go').addEventListener('click', () => {
     const g = S.groups.find((x) => x.kind === 'arm'); if (!g) return;
     act('Arm', () => api('POST', `/api/groups/${g.id}`, { action: 'go_to', targets: g.axes.map((id) => Number($(`arm-${id}`).value)) }));
+  });
+  $('juggler-run').addEventListener('click', async () => {
+    const g = S.groups.find((x) => x.programs && x.programs.length); if (!g) return;
+    await act('Juggler program', () => api('POST', `/api/groups/${g.id}`, { action: 'run', program: $('juggler-program').value }));
+    await loadGroups();
   });
   $('rules-upload').addEventListener('click', () => act('Rules', () => api('PUT', '/api/safety/rules', { toml: $('rules-text').value })));
   $('audit-refresh').addEventListener('click', loadAudit);

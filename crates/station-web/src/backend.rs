@@ -196,6 +196,12 @@ pub enum GroupAction {
     },
     /// Stop every member axis.
     Stop,
+    /// Load one of [`GroupView::programs`] onto the group's controller and run it (the
+    /// juggler's patterns); the supervisor guards it like any motion.
+    Run {
+        /// The program's name.
+        program: String,
+    },
 }
 
 /// What a group is for (the HMI panel that commands it).
@@ -223,6 +229,12 @@ pub struct GroupView {
     pub kind: GroupKind,
     /// Member axis ids, in the order of [`GroupAction::GoTo`] targets.
     pub axes: Vec<String>,
+    /// Programs [`GroupAction::Run`] can load onto the group's controller (empty: none).
+    #[serde(default)]
+    pub programs: Vec<String>,
+    /// The program the group's controller runs, when it has one.
+    #[serde(default)]
+    pub program: Option<String>,
 }
 
 /// One rule's predicted reach, per axis.

@@ -753,6 +753,8 @@ impl MachineBackend for FakeBackend {
             id: id.to_string(),
             kind,
             axes: axes.iter().map(|s| (*s).to_string()).collect(),
+            programs: Vec::new(),
+            program: None,
         };
         vec![
             g("gantry", GroupKind::Gantry, &["x", "y", "z"]),
@@ -774,6 +776,9 @@ impl MachineBackend for FakeBackend {
                     self.command(caller, id, AxisAction::Stop)?;
                 }
                 Ok(())
+            }
+            GroupAction::Run { .. } => {
+                Err(BackendError::State(format!("group {group} has no programs to run")))
             }
             GroupAction::GoTo { targets } => {
                 if targets.len() != g.axes.len() {

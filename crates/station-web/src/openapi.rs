@@ -178,7 +178,12 @@ fn paths() -> Value {
         "/api/groups/{id}",
         "post",
         with_path_param(
-            op("Group command: go_to targets or stop", Some(r("GroupAction")), ok_schema(), true),
+            op(
+                "Group command: go_to targets, stop, or run a program of the group's controller",
+                Some(r("GroupAction")),
+                ok_schema(),
+                true,
+            ),
             "id",
             "string",
         ),
@@ -296,9 +301,11 @@ fn schemas() -> Value {
             "predicted": arr(json!({ "type": "object", "properties": { "axis": s, "stop_position": num, "distance": num } })) } },
         "RulesRequest": { "type": "object", "required": ["toml"], "properties": { "toml": s } },
         "GroupView": { "type": "object", "properties": {
-            "id": s, "kind": { "type": "string", "enum": ["robot", "pan_tilt", "arm", "gantry", "juggler"] }, "axes": arr(s.clone()) } },
+            "id": s, "kind": { "type": "string", "enum": ["robot", "pan_tilt", "arm", "gantry", "juggler"] }, "axes": arr(s.clone()),
+            "programs": arr(s.clone()), "program": { "type": "string", "nullable": true } } },
         "GroupAction": { "type": "object", "required": ["action"], "properties": {
-            "action": { "type": "string", "enum": ["go_to", "stop"] }, "targets": arr(num.clone()) } },
+            "action": { "type": "string", "enum": ["go_to", "stop", "run"] }, "targets": arr(num.clone()),
+            "program": s } },
         "UploadRequest": { "type": "object", "required": ["name", "text"], "properties": { "name": s, "text": s } },
         "ProgramInfo": { "type": "object", "properties": { "id": s, "name": s, "owner": s, "size": num, "lines": num } },
         "ProgramCheck": { "type": "object", "properties": {

@@ -330,23 +330,28 @@ impl Mn {
             };
             let sent = Instant::now();
             self.send(mac, node, Message::PReq(preq));
-            self.wait_pres(node, sent, operational);
+            self.wait_pres(i, node, sent, operational);
         }
         self.async_phase(next_deadline);
         self.boot_step(deadline);
         self.cycle_index += 1;
     }
 
-    fn wait_pres(&mut self, node: u8, sent: Instant, operational: bool) {
+    fn wait_pres(&mut self, index: usize, node: u8, sent: Instant, operational: bool) {
         let until = sent + self.config.pres_timeout;
         loop {
             match self.recv_until(until) {
                 Some((f, at)) => {
-                    if let Message::PRes(_) = f.message {
+                    if let Message::PRes(pres) = &f.message {
                         if f.src_node == node {
                             if operational {
                                 let rtt = at.saturating_duration_since(sent).as_nanos();
                                 self.stats().pres_rtt_ns.push(u64::try_from(rtt).unwrap_or(u64::MAX));
+                                if let (Some(p), Some(a)) =
+                                    (self.program.as_mut(), super::pdo::Actual::decode(&pres.payload))
+                                {
+                                    p.actual(index, &a);
+                                }
                             }
                             return;
                         }

@@ -11,6 +11,10 @@ use std::time::Duration;
 pub trait MotionProgram: Send {
     /// Fills `out[i]` with the target position of drive `i` at `t` after the program started.
     fn setpoints(&mut self, t: Duration, out: &mut [i32]);
+
+    /// Drive `i`'s answer (PRes) of the cycle just run: what a controller watches to hold
+    /// its program when a drive stops on its own. Ignored by default.
+    fn actual(&mut self, _drive: usize, _actual: &super::pdo::Actual) {}
 }
 
 /// One axis of a [`CamProgram`]: `center + amplitude * sin(2π (t / period + phase))`.
