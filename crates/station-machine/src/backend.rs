@@ -59,6 +59,13 @@ impl MachineBackend for StationMachine {
         if motion && self.shared.estop.load(Ordering::Relaxed) {
             return Err(BackendError::EStopped);
         }
+        if motion {
+            if let Some(reason) = self.shared.faults.fault_of(axis) {
+                return Err(BackendError::State(format!(
+                    "axis {axis}: {reason}; the station is reconnecting it, motion is refused until it is back"
+                )));
+            }
+        }
         if motion && view.group.as_deref() == Some("juggler") {
             if let Some(why) = self.juggler_blocks() {
                 return Err(BackendError::SafetyHold(why));

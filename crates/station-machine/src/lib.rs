@@ -10,6 +10,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod alarms;
 pub mod backend;
 pub mod demo;
 mod poller;
@@ -45,7 +46,7 @@ pub enum StationError {
 }
 
 /// Options of the station.
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct StationOptions {
     /// How the cell runs.
     pub cell: CellOptions,
@@ -53,11 +54,30 @@ pub struct StationOptions {
     pub poll: Duration,
     /// External camera URL shown in the HMI.
     pub camera_url: Option<String>,
+    /// Where the runtime's alarms go besides [`StationMachine::alarms`] (the station's
+    /// [`alarms::LabAlarmSink`], so the HMI lists them).
+    pub alarm_sink: Option<Arc<dyn AlarmSink>>,
+}
+
+impl std::fmt::Debug for StationOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("StationOptions")
+            .field("cell", &self.cell)
+            .field("poll", &self.poll)
+            .field("camera_url", &self.camera_url)
+            .field("alarm_sink", &self.alarm_sink.is_some())
+            .finish()
+    }
 }
 
 impl Default for StationOptions {
     fn default() -> Self {
-        Self { cell: CellOptions::default(), poll: Duration::from_millis(50), camera_url: None }
+        Self {
+            cell: CellOptions::default(),
+            poll: Duration::from_millis(50),
+            camera_url: None,
+            alarm_sink: None,
+        }
     }
 }
 
@@ -203,7 +223,9 @@ impl StationMachine {
         }
         {
             let s = Arc::clone(&shared);
-            let sink: Arc<dyn AlarmSink> = alarms;
+            let mut sinks: Vec<Arc<dyn AlarmSink>> = vec![alarms];
+            sinks.extend(options.alarm_sink.clone());
+            let sink: Arc<dyn AlarmSink> = Arc::new(alarms::Tee(sinks));
             let mut rec = Reconnector::new(Backoff::default(), sink, faults);
             for h in handles {
                 rec.add(h);
@@ -225,6 +247,12 @@ impl StationMachine {
     /// Runs `f` with the running cell (simulators: kill / restart for tests and demos).
     pub fn with_cell<R>(&self, f: impl FnOnce(&RunningCell) -> R) -> R {
         f(&lock(&self.shared.running))
+    }
+
+    /// Runs `f` with the running cell, mutably (kill or restart a simulator: chaos tests and
+    /// demonstrations of the reconnection).
+    pub fn with_cell_mut<R>(&self, f: impl FnOnce(&mut RunningCell) -> R) -> R {
+        f(&mut lock(&self.shared.running))
     }
 
     /// Active alarms of the station's devices and tasks: (source, code).

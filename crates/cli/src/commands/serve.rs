@@ -9,6 +9,7 @@ use std::time::{Duration, SystemTime};
 
 use anyhow::{Context, Result};
 use motus_lab::{Lab, LabConfig, MotionLimits, Role, SqliteStore, Store, UnixMs};
+use motus_station_machine::alarms::LabAlarmSink;
 use motus_station_machine::{StationMachine, StationOptions};
 use motus_station_web::{start, WebConfig};
 use rand::Rng;
@@ -52,7 +53,9 @@ fn run_station(
         }
     }
     eprintln!("starting the cell {} ({} axes)…", cell_file.display(), cell.axes.len());
-    let machine = Arc::new(StationMachine::start(&cell, StationOptions::default())?);
+    let alarm_sink = LabAlarmSink::start(Arc::clone(&lab)).context("starting the alarm writer")?;
+    let options = StationOptions { alarm_sink: Some(alarm_sink), ..StationOptions::default() };
+    let machine = Arc::new(StationMachine::start(&cell, options)?);
     let backend: Arc<dyn motus_station_web::MachineBackend> = machine.clone();
     let web = start(
         WebConfig { listen, station: cell.station.name.clone(), ..WebConfig::default() },

@@ -1,0 +1,196 @@
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+//! Chaos through the station's HTTP API, on the demo cell (`motus demo`'s): a PS1A module
+//! moving when its simulator dies -> an alarm in `GET /api/alarms`, that line's axes faulted
+//! and stopped in `GET /api/axes`, commands to them refused with the reason; a gantry axis
+//! and the juggler keep going. The simulator restarts -> the station reconnects by itself,
+//! the alarm clears, and the axis is homed and moved again through the API.
+
+use std::io::{Read, Write};
+use std::sync::Arc;
+use std::time::{Duration, Instant, SystemTime};
+
+use motus_lab::{Lab, LabConfig, MemoryStore, Role, UnixMs};
+use motus_station_machine::alarms::LabAlarmSink;
+use motus_station_machine::{demo, StationMachine, StationOptions};
+use motus_station_web::{start, WebConfig};
+use serde_json::{json, Value};
+
+struct Client {
+    addr: String,
+    cookie: String,
+    csrf: String,
+}
+
+fn http(addr: &str, method: &str, path: &str, headers: &[(&str, &str)], body: &str) -> (u16, String, String) {
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+    let mut req = format!(
+        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n",
+        body.len()
+    );
+    for (k, v) in headers {
+        req.push_str(&format!("{k}: {v}\r\n"));
+    }
+    req.push_str("\r\n");
+    req.push_str(body);
+    s.write_all(req.as_bytes()).unwrap();
+    let mut resp = String::new();
+    s.read_to_string(&mut resp).unwrap();
+    let (head, body) = resp.split_once("\r\n\r\n").unwrap_or((&resp, ""));
+    let status = head.split_whitespace().nth(1).unwrap().parse().unwrap();
+    (status, head.to_owned(), body.to_owned())
+}
+
+impl Client {
+    fn login(addr: &str, user: &str, password: &str) -> Self {
+        let body = json!({ "user": user, "password": password }).to_string();
+        let (st, head, body) = http(addr, "POST", "/api/login", &[], &body);
+        assert_eq!(st, 200, "{body}");
+        let cookie = head
+            .lines()
+            .find_map(|l| l.strip_prefix("set-cookie: ").or_else(|| l.strip_prefix("Set-Cookie: ")))
+            .unwrap()
+            .split(';')
+            .next()
+            .unwrap()
+            .to_owned();
+        let csrf = serde_json::from_str::<Value>(&body).unwrap()["csrf_token"].as_str().unwrap().to_owned();
+        Client { addr: addr.to_owned(), cookie, csrf }
+    }
+
+    fn call(&self, method: &str, path: &str, body: Value) -> (u16, Value) {
+        let headers = [("Cookie", self.cookie.as_str()), ("X-CSRF-Token", self.csrf.as_str())];
+        let text = if body.is_null() { String::new() } else { body.to_string() };
+        let (st, _, b) = http(&self.addr, method, path, &headers, &text);
+        (st, serde_json::from_str(&b).unwrap_or(Value::String(b)))
+    }
+
+    fn ok(&self, method: &str, path: &str, body: Value) -> Value {
+        let (st, v) = self.call(method, path, body);
+        assert_eq!(st, 200, "{method} {path}: {v}");
+        v
+    }
+
+    fn axis(&self, id: &str) -> Value {
+        let axes = self.ok("GET", "/api/axes", Value::Null);
+        axes.as_array().unwrap().iter().find(|a| a["id"] == id).unwrap().clone()
+    }
+
+    fn wait_axis(&self, id: &str, timeout: Duration, what: &str, done: impl Fn(&Value) -> bool) -> Value {
+        let t0 = Instant::now();
+        loop {
+            let a = self.axis(id);
+            if done(&a) {
+                return a;
+            }
+            assert!(t0.elapsed() < timeout, "{id}: not {what} within {timeout:?}: {a}");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    /// The active alarm (raised, and not both cleared and acknowledged) of `source`.
+    fn active_alarm(&self, code: &str, source: &str) -> Option<Value> {
+        let v = self.ok("GET", "/api/alarms", Value::Null);
+        v["active"].as_array().unwrap().iter().find(|a| a["code"] == code && a["source"] == source).cloned()
+    }
+
+    fn move_to(&self, id: &str, target: f64) {
+        let a = self.axis(id);
+        self.ok(
+            "POST",
+            &format!("/api/axes/{id}/move"),
+            json!({ "target": target, "speed": a["default_speed"] }),
+        );
+    }
+}
+
+#[test]
+fn a_simulator_killed_in_motion_faults_only_its_axes_and_comes_back_through_the_api() {
+    let _ = tracing_subscriber::fmt().with_env_filter("info").with_test_writer().try_init();
+    let dir = tempfile::tempdir().unwrap();
+    let cell_file = demo::write_demo_cell(dir.path(), "127.0.0.1:0").unwrap();
+    let lab = Arc::new(Lab::new(Arc::new(MemoryStore::new()), LabConfig::default()));
+    lab.users().add("admin", "chaos-admin-password-1", Role::Admin, UnixMs::from(SystemTime::now())).unwrap();
+    let options = StationOptions {
+        alarm_sink: Some(LabAlarmSink::start(Arc::clone(&lab)).unwrap()),
+        ..StationOptions::default()
+    };
+    let machine = Arc::new(StationMachine::start_file(&cell_file, options).unwrap_or_else(|e| panic!("{e}")));
+    let mut config = WebConfig::default();
+    config.listen = "127.0.0.1:0".parse().unwrap();
+    config.station = "Motus demo cell".into();
+    let web = start(config, machine.clone(), lab).unwrap();
+    let addr = web.addr().to_string();
+    let c = Client::login(&addr, "admin", "chaos-admin-password-1");
+
+    // Home a PS1A module and a gantry axis, then move both.
+    for id in ["linear1", "y"] {
+        c.ok("POST", &format!("/api/axes/{id}/home"), Value::Null);
+    }
+    for id in ["linear1", "y"] {
+        c.wait_axis(id, Duration::from_secs(30), "homed", |a| a["homed"] == true && a["moving"] == false);
+    }
+    let frames_before = machine.with_cell(|rc| rc.juggler().unwrap().snapshot().frames);
+    c.move_to("linear1", 0.3);
+    c.move_to("y", 0.3);
+    c.wait_axis("linear1", Duration::from_secs(5), "moving", |a| a["moving"] == true);
+
+    // Kill the PS1A line's simulator mid-move.
+    machine.with_cell_mut(|rc| rc.kill_simulator("ps1a-line")).unwrap();
+    let killed = Instant::now();
+    let t0 = Instant::now();
+    while c.active_alarm("device_disconnected", "device:ps1a-1").is_none() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "no alarm: {}",
+            c.ok("GET", "/api/alarms", Value::Null)
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    eprintln!("alarm after {:?}", killed.elapsed());
+    for id in ["linear1", "linear2", "linear3", "linear4"] {
+        let a = c.wait_axis(id, Duration::from_secs(5), "faulted", |a| {
+            a["fault"].is_string() && a["moving"] == false
+        });
+        eprintln!("{id}: {}", a["fault"]);
+    }
+    // Commands to a disconnected axis are refused, with the reason.
+    let (st, v) = c.call("POST", "/api/axes/linear1/home", Value::Null);
+    assert_ne!(st, 200, "{v}");
+    eprintln!("home linear1 while disconnected: {st} {v}");
+    // The rest continues: y arrives at its target, the juggler's segment keeps cycling.
+    let y = c
+        .wait_axis("y", Duration::from_secs(15), "arrived", |a| a["moving"] == false && a["fault"].is_null());
+    assert!((y["position"].as_f64().unwrap() - 0.3).abs() < 1e-5, "{y}");
+    assert!(c.axis("pan")["fault"].is_null(), "{}", c.axis("pan"));
+    let frames_after = machine.with_cell(|rc| rc.juggler().unwrap().snapshot().frames);
+    assert!(frames_after > frames_before + 1000, "juggler {frames_before} -> {frames_after}");
+
+    // Restart: the station reconnects on its own; home and move again through the API.
+    machine.with_cell_mut(|rc| rc.restart_simulator("ps1a-line")).unwrap();
+    let t0 = Instant::now();
+    let alarm = loop {
+        let a = c.active_alarm("device_disconnected", "device:ps1a-1").expect("active until acknowledged");
+        if !a["cleared_at"].is_null() {
+            break a;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(20), "still disconnected: {a}");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    eprintln!("reconnected {:?} after the restart", t0.elapsed());
+    // Cleared, still listed until the operator acknowledges it; then it is history.
+    c.ok("POST", &format!("/api/alarms/{}/ack", alarm["id"]), Value::Null);
+    assert!(c.active_alarm("device_disconnected", "device:ps1a-1").is_none());
+    let history = c.ok("GET", "/api/alarms", Value::Null)["history"].clone();
+    assert!(history.as_array().unwrap().iter().any(|a| a["id"] == alarm["id"]), "{history}");
+    c.ok("POST", "/api/axes/linear1/home", Value::Null);
+    c.wait_axis("linear1", Duration::from_secs(30), "homed again", |a| {
+        a["homed"] == true && a["moving"] == false && a["fault"].is_null()
+    });
+    c.move_to("linear1", 0.02);
+    let a = c.wait_axis("linear1", Duration::from_secs(30), "at 0.02", |a| {
+        a["moving"] == false && (a["position"].as_f64().unwrap_or(9.0) - 0.02).abs() < 2e-5
+    });
+    eprintln!("linear1 back in service at {}", a["position"]);
+    drop(web);
+}
