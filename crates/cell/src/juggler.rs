@@ -137,6 +137,14 @@ impl JugglerHandle {
         let _ = lock(&self.ops).send(Op::Reset);
     }
 
+    /// The latest PRes of every drive seen by the monitor: `f(node, position, speed,
+    /// status)` in raw drive units, under a short lock (for cyclic trace tasks).
+    pub fn for_each_drive(&self, mut f: impl FnMut(u8, i32, i32, u16)) {
+        for (node, v) in lock(&self.views).iter() {
+            f(*node, v.position, v.speed, v.status);
+        }
+    }
+
     /// The program the juggler runs (`None`: not selectable here, e.g. a real machine whose
     /// controller is programmed on its own).
     pub fn program(&self) -> Option<Pattern> {

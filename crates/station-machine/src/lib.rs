@@ -15,6 +15,7 @@ pub mod backend;
 pub mod demo;
 mod poller;
 mod programs;
+pub mod tasks;
 
 use std::collections::VecDeque;
 use std::path::Path;
@@ -43,6 +44,9 @@ pub enum StationError {
     /// A thread could not be started.
     #[error("starting a thread: {0}")]
     Thread(#[from] std::io::Error),
+    /// The cyclic tasks could not start.
+    #[error("cyclic tasks: {0}")]
+    Tasks(#[from] tasks::TasksError),
 }
 
 /// Options of the station.
@@ -128,6 +132,7 @@ pub struct StationMachine {
     pub(crate) programs: programs::Programs,
     pub(crate) camera_url: Option<String>,
     threads: Vec<JoinHandle<()>>,
+    tasks: Option<tasks::Tasks>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -221,11 +226,12 @@ impl StationMachine {
                     .spawn(move || poller::run(&s, poll))?,
             );
         }
+        let mut sinks: Vec<Arc<dyn AlarmSink>> = vec![alarms];
+        sinks.extend(options.alarm_sink.clone());
+        let sink: Arc<dyn AlarmSink> = Arc::new(alarms::Tee(sinks));
+        let tasks = tasks::start(cell, shared.juggler.as_ref(), Arc::clone(&sink))?;
         {
             let s = Arc::clone(&shared);
-            let mut sinks: Vec<Arc<dyn AlarmSink>> = vec![alarms];
-            sinks.extend(options.alarm_sink.clone());
-            let sink: Arc<dyn AlarmSink> = Arc::new(alarms::Tee(sinks));
             let mut rec = Reconnector::new(Backoff::default(), sink, faults);
             for h in handles {
                 rec.add(h);
@@ -241,7 +247,7 @@ impl StationMachine {
             })?);
         }
         let programs = programs::Programs::start()?;
-        Ok(Self { shared, programs, camera_url: options.camera_url, threads })
+        Ok(Self { shared, programs, camera_url: options.camera_url, threads, tasks })
     }
 
     /// Runs `f` with the running cell (simulators: kill / restart for tests and demos).
@@ -260,8 +266,32 @@ impl StationMachine {
         self.shared.alarms.active()
     }
 
+    /// Statistics of the cyclic task classes (cycle time, jitter, overruns, CPU).
+    pub fn task_stats(&self) -> Vec<motus_station::scheduler::ClassStats> {
+        self.tasks.as_ref().map(|t| t.scheduler.stats()).unwrap_or_default()
+    }
+
+    /// Resets the statistics of every task class.
+    pub fn reset_task_stats(&self) {
+        if let Some(t) = &self.tasks {
+            let _ = t.scheduler.reset_stats(None);
+        }
+    }
+
+    /// The latest traced value of `signal` (e.g. `trace-fast/thrower-drive.position`).
+    pub fn traced(&self, signal: &str) -> Option<motus_station::trace::Sample> {
+        let t = self.tasks.as_ref()?;
+        let rec = lock(&t.recorder);
+        rec.latest(rec.find(signal)?)
+    }
+
     /// Stops the threads and the cell.
     pub fn stop(&mut self) {
+        if let Some(t) = self.tasks.take() {
+            for c in t.scheduler.stop() {
+                tracing::info!("task class {}", c.summary());
+            }
+        }
         self.shared.stop.store(true, Ordering::Relaxed);
         for t in self.threads.drain(..) {
             let _ = t.join();

@@ -116,9 +116,11 @@ fn a_simulator_killed_in_motion_faults_only_its_axes_and_comes_back_through_the_
         ..StationOptions::default()
     };
     let machine = Arc::new(StationMachine::start_file(&cell_file, options).unwrap_or_else(|e| panic!("{e}")));
-    let mut config = WebConfig::default();
-    config.listen = "127.0.0.1:0".parse().unwrap();
-    config.station = "Motus demo cell".into();
+    let config = WebConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        station: "Motus demo cell".into(),
+        ..WebConfig::default()
+    };
     let web = start(config, machine.clone(), lab).unwrap();
     let addr = web.addr().to_string();
     let c = Client::login(&addr, "admin", "chaos-admin-password-1");
@@ -165,6 +167,11 @@ fn a_simulator_killed_in_motion_faults_only_its_axes_and_comes_back_through_the_
     assert!(c.axis("pan")["fault"].is_null(), "{}", c.axis("pan"));
     let frames_after = machine.with_cell(|rc| rc.juggler().unwrap().snapshot().frames);
     assert!(frames_after > frames_before + 1000, "juggler {frames_before} -> {frames_after}");
+    // The 1 ms trace task records the juggler's drives (and keeps its cycle).
+    let fast = machine.task_stats().into_iter().find(|c| c.name == "trace-fast").unwrap();
+    eprintln!("{}", fast.summary());
+    assert!(fast.cycles > 1000, "{}", fast.summary());
+    assert!(machine.traced("trace-fast/thrower-drive.position").is_some());
 
     // Restart: the station reconnects on its own; home and move again through the API.
     machine.with_cell_mut(|rc| rc.restart_simulator("ps1a-line")).unwrap();
