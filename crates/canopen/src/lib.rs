@@ -28,5 +28,8 @@ pub use error::MasterError;
 pub use lss::{LssIdentity, LssMode};
 pub use motus_canopen_protocol::{NmtCommand, NmtState, SdoAbortCode};
 pub use pdo::{PdoConfig, PdoDirection};
-pub use runtime::{CobFilter, DumpRow, Master, MasterEvent, MasterStats, NodeInfo, SyncProducer};
+pub use runtime::{
+    consumer_entry, CobFilter, DumpRow, HeartbeatProducer, Master, MasterEvent, MasterStats, NodeInfo,
+    SyncProducer,
+};
 pub use sdo_client::SdoError;

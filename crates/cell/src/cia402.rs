@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use motus_axis::{Axis, Scale};
 use motus_can::socketcand::{Hub, HubConfig};
 use motus_can::BusUri;
-use motus_canopen::Master;
+use motus_canopen::{consumer_entry, HeartbeatProducer, Master};
 use motus_cia402::{CanopenDrive, Cia402Axis, Drive, DriveSettings, Profile};
 use motus_icla_sim::{SimConfig, SimDrive};
 use motus_omni::kinematics::Pose;
@@ -168,10 +168,22 @@ pub(crate) fn true_pose(robot: &Mutex<Option<SimRobot>>) -> Option<Pose> {
     robot.lock().unwrap_or_else(PoisonError::into_inner).as_ref().map(SimRobot::true_pose)
 }
 
-/// The host side of one CAN link: one master, opened on first use.
+/// The node id the station's master sends its heartbeat as (126: the IclA's factory id is
+/// 127, and a cell's drives use low ids).
+pub const MASTER_NODE_ID: u8 = 126;
+
+/// Period of the master's heartbeat.
+pub const MASTER_HEARTBEAT: Duration = Duration::from_millis(100);
+
+/// Every drive of the cell is told to watch the master's heartbeat with this time-out
+/// (0x1016): when the station dies, each drive stops by itself (EMCY 0x8130 and its fault
+/// reaction) within this time plus its quick-stop ramp.
+pub const DRIVE_HEARTBEAT_TIMEOUT: Duration = Duration::from_millis(300);
+
+/// The host side of one CAN link: one master (with its heartbeat), opened on first use.
 pub(crate) struct CanLink {
     uri: String,
-    master: Mutex<Option<Arc<Master>>>,
+    master: Mutex<Option<(Arc<Master>, HeartbeatProducer)>>,
 }
 
 impl CanLink {
@@ -182,14 +194,16 @@ impl CanLink {
     /// The link's master (opened once; the drives share it).
     fn master(&self) -> Result<Arc<Master>, DeviceError> {
         let mut g = self.master.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some(m) = g.as_ref() {
+        if let Some((m, _)) = g.as_ref() {
             return Ok(Arc::clone(m));
         }
-        let bus = motus_can::open_bus(&self.uri)
-            .map_err(|e| DeviceError::Link { link: self.uri.clone(), reason: e.to_string() })?;
+        let link_err = |reason: String| DeviceError::Link { link: self.uri.clone(), reason };
+        let bus = motus_can::open_bus(&self.uri).map_err(|e| link_err(e.to_string()))?;
         let m = Arc::new(Master::new(bus));
         m.set_sdo_timeout(SDO_TIMEOUT);
-        *g = Some(Arc::clone(&m));
+        let heartbeat =
+            m.start_heartbeat(MASTER_NODE_ID, MASTER_HEARTBEAT).map_err(|e| link_err(e.to_string()))?;
+        *g = Some((Arc::clone(&m), heartbeat));
         Ok(m)
     }
 }
@@ -232,6 +246,15 @@ impl Cia402Device {
                 )));
             }
             std::thread::sleep(Duration::from_millis(10));
+        }
+        // The drive's own watchdog on the station: it stops when our heartbeat stops.
+        let entry = consumer_entry(MASTER_NODE_ID, DRIVE_HEARTBEAT_TIMEOUT);
+        if let Err(e) = master.sdo_download(self.node, 0x1016, 1, &entry.to_le_bytes()) {
+            tracing::warn!(
+                node = self.node,
+                error = %e,
+                "the drive refused the heartbeat consumer (0x1016): it will NOT stop by itself if the station dies"
+            );
         }
         let mut io = CanopenDrive::new(master, self.node);
         io.use_pdos().map_err(|e| DeviceError::NoAnswer(e.to_string()))?;

@@ -11,6 +11,7 @@ use motus_canopen_protocol::{CanFrame, LssRequest, NmtCommand, NmtState};
 use crate::cia402::{Options, Power};
 use crate::config::{SimConfig, UNCONFIGURED};
 use crate::emcy::Emcy;
+use crate::heartbeat_consumer::HeartbeatConsumer;
 use crate::lss::{LssEvent, LssSlave};
 use crate::motion::{Motion, Params};
 use crate::motor::Motor;
@@ -18,6 +19,9 @@ use crate::nmt::{Nmt, NmtAction};
 use crate::od::ObjectDictionary;
 use crate::pdo::{PdoEngine, RpdoResult};
 use crate::sdo_server::SdoServer;
+
+/// EMCY code of a consumed heartbeat that stopped (CiA 301 "life guard / heartbeat error").
+pub const HEARTBEAT_ERROR: u16 = 0x8130;
 
 /// Integration step of the motion model.
 pub const STEP: Duration = Duration::from_millis(1);
@@ -49,6 +53,7 @@ pub struct SimDrive {
     pub(crate) mode: Mode,
     pub(crate) controlword: u16,
     pub(crate) inject: Injection,
+    heartbeat_consumer: HeartbeatConsumer,
     clock: Option<Instant>,
     boot_at: Option<Instant>,
     booted: bool,
@@ -76,6 +81,7 @@ impl SimDrive {
             mode,
             controlword: 0,
             inject: Injection::default(),
+            heartbeat_consumer: HeartbeatConsumer::default(),
             clock: None,
             boot_at: None,
             booted: false,
@@ -183,6 +189,14 @@ impl SimDrive {
             if let Some(resp) = self.sdo.poll(now) {
                 self.sdo_reply(&resp);
             }
+            self.heartbeat_consumer.configure(self.od.u32(0x1016, 1));
+            if self.heartbeat_consumer.expired(now)
+                && matches!(self.nmt.state(), NmtState::PreOperational | NmtState::Operational)
+            {
+                let producer = self.heartbeat_consumer.watched().map_or(0, |(n, _)| n);
+                tracing::warn!(node = ?self.node_id(), producer, "heartbeat of the master lost: fault reaction");
+                self.raise_fault(HEARTBEAT_ERROR);
+            }
             if self.nmt.pdo_allowed() {
                 let f = self.pdo.events(&self.od, now, false);
                 self.out.extend(f);
@@ -235,6 +249,12 @@ impl SimDrive {
             return;
         }
         let Some(node) = self.node_id() else { return };
+        if (0x701..=0x77F).contains(&id) {
+            if let [_state] = frame.data() {
+                self.heartbeat_consumer.on_heartbeat((id - 0x700) as u8, now);
+            }
+            return;
+        }
         if id == 0x000 {
             if let [cs, target] = frame.data() {
                 if *target == 0 || *target == node {

@@ -20,6 +20,7 @@ pub mod config;
 pub mod drive;
 pub mod eds;
 pub mod emcy;
+pub mod heartbeat_consumer;
 pub mod lss;
 pub mod motion;
 pub mod motor;

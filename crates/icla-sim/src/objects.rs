@@ -100,6 +100,8 @@ fn communication(od: &mut ObjectDictionary, cfg: &SimConfig) {
     );
     od.add_var(0x1014, "COB-ID EMCY", ro(U32, 0x80).node_relative());
     od.add_var(0x1015, "Inhibit time EMCY", rw(U16, 0));
+    record(od, 0x1016, "Consumer heartbeat time", ObjectKind::Array, 1, Const);
+    od.add_entry(0x1016, 1, "Consumer heartbeat time 1", rw(U32, 0));
     od.add_var(0x1017, "Producer heartbeat time", rw(U16, i64::from(cfg.heartbeat_ms)));
     record(od, 0x1018, "Identity object", ObjectKind::Record, 4, Const);
     let id = cfg.identity;

@@ -299,3 +299,38 @@ fn communication_fault_injection() {
     rig.drive.set_silent(false);
     assert!(!rig.run(1000).is_empty());
 }
+
+#[test]
+fn the_drive_stops_when_the_masters_heartbeat_stops() {
+    let (mut rig, _) = Rig::new(SimConfig::node(2));
+    // 0x1016:1 := node 126 (0x7E), 300 ms (0x012C): 23 16 10 01 2C 01 7E 00.
+    assert_eq!(rig.send("602#231610012C017E00"), vec!["582#6016100100000000"]);
+    assert_eq!(rig.send("602#4016100100000000"), vec!["582#431610012C017E00"]);
+    rig.enable();
+    rig.send("602#2F60600003000000");
+    rig.send("602#23FF6000C8000000");
+    // The master's heartbeat every 100 ms: the drive runs on.
+    for _ in 0..10 {
+        rig.send("77E#05");
+        let out = rig.run(100);
+        assert!(out.iter().all(|f| !f.starts_with("082#")), "no EMCY while the heartbeat comes: {out:?}");
+    }
+    assert_eq!(rig.drive.velocity(), 200);
+    assert_eq!(rig.drive.power_state(), PowerState::OperationEnabled);
+    // Other nodes' heartbeats do not count.
+    let mut out = Vec::new();
+    for _ in 0..4 {
+        rig.send("703#05");
+        out.extend(rig.run(100));
+    }
+    // 300 ms after the last one: EMCY 0x8130 (30 81), error register 0x11 (generic +
+    // communication), and the fault reaction stops the motor.
+    assert!(out.iter().any(|f| f.starts_with("082#308111")), "{out:?}");
+    assert_ne!(rig.drive.power_state(), PowerState::OperationEnabled);
+    rig.run(500);
+    assert_eq!(rig.drive.velocity(), 0);
+    assert_eq!(rig.drive.power_state(), PowerState::Fault);
+    assert_eq!(rig.drive.emcy().code(), 0x8130);
+    // Reported once, not again while the master stays silent.
+    assert!(rig.run(1000).iter().all(|f| !f.starts_with("082#")));
+}

@@ -2,10 +2,12 @@
 //! calling thread only. SDO transfers to different nodes run in parallel (one channel
 //! per node), transfers to the same node are serialised.
 
+mod heartbeat_producer;
 mod lss_ops;
 mod sdo_ops;
 mod sync_producer;
 
+pub use heartbeat_producer::{consumer_entry, HeartbeatProducer};
 pub use sdo_ops::{DumpRow, NodeInfo};
 pub use sync_producer::SyncProducer;
 
