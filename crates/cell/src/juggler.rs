@@ -85,6 +85,8 @@ enum Op {
     Reset,
     /// A fresh integrity check of the configuration (rules, approval, key).
     Integrity(Result<(), String>),
+    /// New rules, approved and written by the station (an administrator's change).
+    Rules(Box<RuleSet>),
 }
 
 /// How often the configuration's integrity is checked.
@@ -143,6 +145,12 @@ impl JugglerHandle {
         for (node, v) in lock(&self.views).iter() {
             f(*node, v.position, v.speed, v.status);
         }
+    }
+
+    /// Installs `rules` in the running supervisor (after the station wrote and approved
+    /// them): the drives are stopped and held until an operator's reset.
+    pub fn install_rules(&self, rules: RuleSet) {
+        let _ = lock(&self.ops).send(Op::Rules(Box::new(rules)));
     }
 
     /// The program the juggler runs (`None`: not selectable here, e.g. a real machine whose
@@ -262,7 +270,11 @@ fn value_map(nodes: &[u8]) -> ValueMap {
     }
 }
 
-fn read_key(path: &Path) -> Result<Vec<u8>, String> {
+/// Reads the administrator key file (trailing whitespace removed), as `motus safety approve`.
+///
+/// # Errors
+/// The file cannot be read (the message names it).
+pub fn read_key(path: &Path) -> Result<Vec<u8>, String> {
     let mut key = std::fs::read(path).map_err(|e| format!("cannot read the key {}: {e}", path.display()))?;
     while key.last().is_some_and(u8::is_ascii_whitespace) {
         key.pop();
@@ -401,7 +413,7 @@ fn supervise(
 ) {
     let mut buf = vec![0u8; motus_epl::transport::MAX_FRAME];
     let mut last_publish = Instant::now();
-    let names: Vec<String> = sup.supervisor().rules().axes().iter().map(|a| a.name.clone()).collect();
+    let mut names: Vec<String> = sup.supervisor().rules().axes().iter().map(|a| a.name.clone()).collect();
     while !stop.load(Ordering::Relaxed) {
         while let Ok(op) = ops.try_recv() {
             match op {
@@ -411,6 +423,18 @@ fn supervise(
                     sup.set_integrity(r.clone());
                     lock(snapshot).integrity = r;
                 }
+                Op::Rules(rules) => match InputMap::new(&rules, juggler::value_map(&rules), STATUS_HOMED) {
+                    Ok(inputs) => {
+                        names = rules.axes().iter().map(|a| a.name.clone()).collect();
+                        sup.replace_rules(*rules, inputs);
+                        let mut s = lock(snapshot);
+                        s.diagnosis =
+                            Some("new safety rules installed: the drives are held until reset".into());
+                        s.stops = sup.stops();
+                        tracing::warn!("juggler supervisor: new rules installed, drives stopped and held");
+                    }
+                    Err(e) => tracing::error!(error = %e, "new rules not installed"),
+                },
             }
         }
         let event = match link.recv(&mut buf, Duration::from_millis(1)) {

@@ -114,6 +114,18 @@ impl OnlineSupervisor {
         }
     }
 
+    /// Installs new rules (an administrator's approved change): every target is stopped
+    /// first and held (manual restart), the samples start afresh and the integrity counts as
+    /// unchecked until the next [`OnlineSupervisor::set_integrity`].
+    pub fn replace_rules(&mut self, rules: RuleSet, inputs: InputMap) {
+        self.fanout.stop_all();
+        self.samples = vec![None; rules.axes().len()];
+        self.supervisor = Supervisor::new(rules);
+        self.inputs = inputs;
+        self.integrity = Err("new rules installed: integrity not checked yet".into());
+        self.safe = Some(false);
+    }
+
     /// The outcome of the last integrity check (`Err` names what changed).
     pub fn set_integrity(&mut self, result: Result<(), String>) {
         self.integrity = result;

@@ -153,13 +153,13 @@ impl MachineBackend for StationMachine {
             };
         };
         let s = j.snapshot();
+        let limits = self.shared.rule_limits.read().unwrap_or_else(PoisonError::into_inner).clone();
         // In the rules' units: the reach until standstill against the axis's end limits.
         let predicted = s
             .reaches
             .iter()
             .map(|(axis, r)| {
-                let lim =
-                    self.shared.rule_limits.iter().find(|(n, _, _)| n == axis).map(|(_, lo, hi)| (*lo, *hi));
+                let lim = limits.iter().find(|(n, _, _)| n == axis).map(|(_, lo, hi)| (*lo, *hi));
                 let (stop_position, distance) = match lim {
                     Some((lo, hi)) if hi - r.hi <= r.lo - lo => (r.hi, hi - r.hi),
                     Some((lo, _)) => (r.lo, r.lo - lo),
@@ -183,20 +183,18 @@ impl MachineBackend for StationMachine {
                 .supervisor
                 .as_ref()
                 .map_or("none".into(), |c| c.rules.display().to_string()),
-            rules_fingerprint: self.shared.rules_fingerprint.clone(),
+            rules_fingerprint: self
+                .shared
+                .rules_fingerprint
+                .read()
+                .unwrap_or_else(PoisonError::into_inner)
+                .clone(),
             predicted,
         }
     }
 
     fn set_safety_rules(&self, caller: &Caller, toml: &str) -> Result<String, BackendError> {
-        let _ = caller;
-        let rules = motus_safety::RuleSet::from_toml(toml)
-            .map_err(|e| BackendError::invalid("rules", e.to_string()))?;
-        let snap = motus_safety::Snapshot::new(&rules, &[]);
-        Err(BackendError::State(format!(
-            "rules valid (fingerprint {}); install them with `motus safety approve` on the station (administrator key)",
-            snap.fingerprint()
-        )))
+        crate::rules::install(&self.shared, caller, toml)
     }
 
     fn upload_program(&self, caller: &Caller, name: &str, text: &str) -> Result<ProgramInfo, BackendError> {

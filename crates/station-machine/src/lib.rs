@@ -15,6 +15,7 @@ pub mod backend;
 pub mod demo;
 mod poller;
 mod programs;
+mod rules;
 pub mod tasks;
 
 use std::collections::VecDeque;
@@ -112,9 +113,9 @@ pub(crate) struct Shared {
     /// The juggler, if the cell has one.
     pub(crate) juggler: Option<Arc<motus_cell::JugglerHandle>>,
     /// Limits of the supervised axes in the rules' units (name, min, max).
-    pub(crate) rule_limits: Vec<(String, f64, f64)>,
+    pub(crate) rule_limits: RwLock<Vec<(String, f64, f64)>>,
     /// Fingerprint of the rules file at start.
-    pub(crate) rules_fingerprint: String,
+    pub(crate) rules_fingerprint: RwLock<String>,
     pub(crate) axes: Vec<AxisEntry>,
     pub(crate) views: RwLock<Vec<AxisView>>,
     pub(crate) samples: Mutex<Samples>,
@@ -200,8 +201,8 @@ impl StationMachine {
             .map(|r| motus_safety::Snapshot::new(r, &[]).fingerprint().to_string())
             .unwrap_or_default();
         let shared = Arc::new(Shared {
-            rule_limits,
-            rules_fingerprint,
+            rule_limits: RwLock::new(rule_limits),
+            rules_fingerprint: RwLock::new(rules_fingerprint),
             running: Mutex::new(running),
             config: cell.clone(),
             groups,

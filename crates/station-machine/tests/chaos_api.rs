@@ -5,7 +5,6 @@
 //! and the juggler keep going. The simulator restarts -> the station reconnects by itself,
 //! the alarm clears, and the axis is homed and moved again through the API.
 
-use std::io::{Read, Write};
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime};
 
@@ -13,96 +12,10 @@ use motus_lab::{Lab, LabConfig, MemoryStore, Role, UnixMs};
 use motus_station_machine::alarms::LabAlarmSink;
 use motus_station_machine::{demo, StationMachine, StationOptions};
 use motus_station_web::{start, WebConfig};
-use serde_json::{json, Value};
+use serde_json::Value;
 
-struct Client {
-    addr: String,
-    cookie: String,
-    csrf: String,
-}
-
-fn http(addr: &str, method: &str, path: &str, headers: &[(&str, &str)], body: &str) -> (u16, String, String) {
-    let mut s = std::net::TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
-    let mut req = format!(
-        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n",
-        body.len()
-    );
-    for (k, v) in headers {
-        req.push_str(&format!("{k}: {v}\r\n"));
-    }
-    req.push_str("\r\n");
-    req.push_str(body);
-    s.write_all(req.as_bytes()).unwrap();
-    let mut resp = String::new();
-    s.read_to_string(&mut resp).unwrap();
-    let (head, body) = resp.split_once("\r\n\r\n").unwrap_or((&resp, ""));
-    let status = head.split_whitespace().nth(1).unwrap().parse().unwrap();
-    (status, head.to_owned(), body.to_owned())
-}
-
-impl Client {
-    fn login(addr: &str, user: &str, password: &str) -> Self {
-        let body = json!({ "user": user, "password": password }).to_string();
-        let (st, head, body) = http(addr, "POST", "/api/login", &[], &body);
-        assert_eq!(st, 200, "{body}");
-        let cookie = head
-            .lines()
-            .find_map(|l| l.strip_prefix("set-cookie: ").or_else(|| l.strip_prefix("Set-Cookie: ")))
-            .unwrap()
-            .split(';')
-            .next()
-            .unwrap()
-            .to_owned();
-        let csrf = serde_json::from_str::<Value>(&body).unwrap()["csrf_token"].as_str().unwrap().to_owned();
-        Client { addr: addr.to_owned(), cookie, csrf }
-    }
-
-    fn call(&self, method: &str, path: &str, body: Value) -> (u16, Value) {
-        let headers = [("Cookie", self.cookie.as_str()), ("X-CSRF-Token", self.csrf.as_str())];
-        let text = if body.is_null() { String::new() } else { body.to_string() };
-        let (st, _, b) = http(&self.addr, method, path, &headers, &text);
-        (st, serde_json::from_str(&b).unwrap_or(Value::String(b)))
-    }
-
-    fn ok(&self, method: &str, path: &str, body: Value) -> Value {
-        let (st, v) = self.call(method, path, body);
-        assert_eq!(st, 200, "{method} {path}: {v}");
-        v
-    }
-
-    fn axis(&self, id: &str) -> Value {
-        let axes = self.ok("GET", "/api/axes", Value::Null);
-        axes.as_array().unwrap().iter().find(|a| a["id"] == id).unwrap().clone()
-    }
-
-    fn wait_axis(&self, id: &str, timeout: Duration, what: &str, done: impl Fn(&Value) -> bool) -> Value {
-        let t0 = Instant::now();
-        loop {
-            let a = self.axis(id);
-            if done(&a) {
-                return a;
-            }
-            assert!(t0.elapsed() < timeout, "{id}: not {what} within {timeout:?}: {a}");
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    }
-
-    /// The active alarm (raised, and not both cleared and acknowledged) of `source`.
-    fn active_alarm(&self, code: &str, source: &str) -> Option<Value> {
-        let v = self.ok("GET", "/api/alarms", Value::Null);
-        v["active"].as_array().unwrap().iter().find(|a| a["code"] == code && a["source"] == source).cloned()
-    }
-
-    fn move_to(&self, id: &str, target: f64) {
-        let a = self.axis(id);
-        self.ok(
-            "POST",
-            &format!("/api/axes/{id}/move"),
-            json!({ "target": target, "speed": a["default_speed"] }),
-        );
-    }
-}
+mod common;
+use common::Client;
 
 #[test]
 fn a_simulator_killed_in_motion_faults_only_its_axes_and_comes_back_through_the_api() {

@@ -1,0 +1,95 @@
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+//! Only an administrator changes the supervisor's rules, through `PUT /api/safety/rules`:
+//! the station checks them, writes and signs them (the approval verifies with the cell's
+//! key), the fingerprint changes, the supervisor stops and holds the juggler until a reset,
+//! and then runs on the new rules. A student is refused (403) and nothing changes; invalid
+//! rules and rules for other drives are refused with the reason.
+
+mod common;
+
+use std::time::{Duration, Instant};
+
+use common::{station, Client};
+use serde_json::{json, Value};
+
+fn safety(c: &Client) -> Value {
+    c.ok("GET", "/api/safety", Value::Null)
+}
+
+/// Waits for SafeToRun, resetting (as an operator) when the juggler is held: on a loaded
+/// non-real-time host a late cycle lets the 9 ms lease expire now and then.
+fn wait_safe(c: &Client, timeout: Duration) -> Value {
+    let t0 = Instant::now();
+    let mut last_reset = Instant::now();
+    loop {
+        let s = safety(c);
+        if s["safe_to_run"] == true {
+            return s;
+        }
+        assert!(t0.elapsed() < timeout, "not SafeToRun: {s}");
+        if s["held"] == true && last_reset.elapsed() > Duration::from_secs(2) {
+            eprintln!("held ({}): reset", s["diagnosis"]);
+            c.ok("POST", "/api/reset", Value::Null);
+            last_reset = Instant::now();
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+#[test]
+fn an_admin_installs_approved_rules_and_a_student_cannot() {
+    let st = station();
+    let admin = Client::login(&st.addr, "admin", "admin-password-1");
+    let student = Client::login(&st.addr, "student", "student-password-1");
+    let before = wait_safe(&admin, Duration::from_secs(20));
+    let fp0 = before["rules_fingerprint"].as_str().unwrap().to_owned();
+    let rules_file = st.dir.path().join("juggler.toml");
+    let text = std::fs::read_to_string(&rules_file).unwrap();
+
+    // A student: 403, nothing changes.
+    let (code, v) = student.call("PUT", "/api/safety/rules", json!({ "toml": text }));
+    assert_eq!(code, 403, "{v}");
+    assert_eq!(std::fs::read_to_string(&rules_file).unwrap(), text);
+
+    // Invalid rules and rules for other drives: 400 with the reason.
+    let (code, v) =
+        admin.call("PUT", "/api/safety/rules", json!({ "toml": "[supervisor]\ncycle_time = -1\n" }));
+    assert_eq!(code, 400, "{v}");
+    eprintln!("invalid: {v}");
+    let renamed = text.replace("thrower", "catapult");
+    let (code, v) = admin.call("PUT", "/api/safety/rules", json!({ "toml": renamed }));
+    assert_eq!(code, 400, "{v}");
+    assert!(v.to_string().contains("drives"), "{v}");
+    assert_eq!(safety(&admin)["rules_fingerprint"], fp0.as_str());
+
+    // An admin tightens the data-age limit (8 -> 7 cycles): new fingerprint, drives held.
+    let narrowed = text.replacen("max_sample_age = 8", "max_sample_age = 7", 1);
+    assert_ne!(narrowed, text);
+    let v = admin.ok("PUT", "/api/safety/rules", json!({ "toml": narrowed }));
+    eprintln!("installed: {v}");
+    let s = safety(&admin);
+    let fp1 = s["rules_fingerprint"].as_str().unwrap().to_owned();
+    assert_ne!(fp1, fp0);
+    assert!(v.to_string().contains(&fp1), "the answer names the new fingerprint: {v}");
+    let t0 = Instant::now();
+    while safety(&admin)["held"] != true {
+        assert!(t0.elapsed() < Duration::from_secs(5), "{}", safety(&admin));
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert_eq!(std::fs::read_to_string(&rules_file).unwrap(), narrowed);
+    // The approval on disk verifies with the cell's key against the new rules.
+    let key = std::fs::read(st.dir.path().join("data/admin.key")).unwrap();
+    let approval = std::fs::read_to_string(st.dir.path().join("data/juggler.approved")).unwrap();
+    let approved = motus_safety::Approval::from_toml(&approval).unwrap().verify(&key).unwrap();
+    let set = motus_safety::RuleSet::from_toml(&narrowed).unwrap();
+    let mut integrity = motus_safety::Integrity::new(approved, motus_safety::secret_hash(&key));
+    integrity.check(&motus_safety::Snapshot::new(&set, &[])).unwrap();
+    // The operator resets: the juggler runs on the new rules.
+    std::thread::sleep(Duration::from_millis(1500)); // the next integrity check
+    admin.ok("POST", "/api/reset", Value::Null);
+    let s = wait_safe(&admin, Duration::from_secs(20));
+    assert_eq!(s["rules_fingerprint"], fp1.as_str());
+    // The audit log has the change, by whom, and the student's refusal.
+    let audit = admin.ok("GET", "/api/audit", Value::Null).to_string();
+    assert!(audit.contains("admin") && audit.contains("student"), "{audit}");
+}
