@@ -144,5 +144,19 @@ fn demo_serves_the_whole_cell_moves_axes_runs_a_program_and_stops_everything() {
     assert_eq!(safety["estop"], true, "{safety}");
     let (st, _, _) = http(&addr, "POST", "/api/axes/x/move", &auth, "{\"target\":0.2,\"speed\":0.05}");
     assert_eq!(st, 409, "motion refused while E-stopped");
-    drop(demo);
+    // Ctrl-C (SIGINT): the demo stops its station, simulators and threads, and exits 0.
+    let mut demo = demo;
+    let pid = demo.0.id().to_string();
+    assert!(Command::new("kill").args(["-INT", &pid]).status().unwrap().success());
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(s) = demo.0.try_wait().unwrap() {
+            break s;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(20), "the demo did not stop on Ctrl-C");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    eprintln!("demo stopped {:?} after Ctrl-C: {status:?}", t0.elapsed());
+    assert!(status.success(), "{status:?}");
+    assert!(std::net::TcpStream::connect(&addr).is_err(), "the HMI port is released");
 }

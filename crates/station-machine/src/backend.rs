@@ -6,10 +6,11 @@ use std::sync::PoisonError;
 use motus_axis::{AxisCommand, Direction, MotionProfile};
 use motus_cell::{GroupHandle, Pattern};
 use motus_gcode::{interpret_with, InterpreterConfig};
+use motus_station::scheduler::ClassState;
 use motus_station_web::{
-    AxisAction, AxisParameters, AxisView, BackendError, Caller, GroupAction, GroupKind, GroupView,
-    MachineBackend, PredictedReach, ProgramCheck, ProgramDiagnostic, ProgramInfo, ProgramStatus, RobotScene,
-    RunState, SafetyView, Sample, SampleBatch, SceneView, SignalView,
+    AxisAction, AxisLimits, AxisParameters, AxisView, BackendError, Caller, GroupAction, GroupKind,
+    GroupView, MachineBackend, PredictedReach, ProgramCheck, ProgramDiagnostic, ProgramInfo, ProgramStatus,
+    RobotScene, RunState, SafetyView, Sample, SampleBatch, SceneView, SignalView, TaskView,
 };
 
 use crate::{lock, StationMachine};
@@ -106,11 +107,31 @@ impl MachineBackend for StationMachine {
         axis: &str,
         params: AxisParameters,
     ) -> Result<(), BackendError> {
-        let _ = (caller, params);
-        self.view(axis)?;
-        Err(BackendError::State(
-            "axis parameters come from the cell file: edit it (administrator) and restart the station".into(),
-        ))
+        let entry = self
+            .shared
+            .axes
+            .iter()
+            .find(|a| a.view.id == axis)
+            .ok_or_else(|| BackendError::NotFound { kind: "axis", id: axis.to_owned() })?;
+        if entry.view.group.as_deref() == Some("juggler") {
+            return Err(BackendError::State(format!(
+                "axis {axis} is supervised: its limits are in the safety rules (PUT /api/safety/rules)"
+            )));
+        }
+        check_parameters(&entry.view.limits, &params)?;
+        tracing::warn!(admin = %caller.user, axis, ?params, "axis parameters changed");
+        self.shared.overrides.write().unwrap_or_else(PoisonError::into_inner).insert(axis.to_owned(), params);
+        if let Some(v) = self
+            .shared
+            .views
+            .write()
+            .unwrap_or_else(PoisonError::into_inner)
+            .iter_mut()
+            .find(|v| v.id == axis)
+        {
+            apply_parameters(v, &params);
+        }
+        Ok(())
     }
 
     fn estop(&self, caller: &Caller) {
@@ -136,6 +157,8 @@ impl MachineBackend for StationMachine {
         for a in &self.shared.axes {
             let _ = lock(&a.axis).execute(&AxisCommand::FaultReset);
         }
+        // A task class degraded by overruns is recoverable from here (the web), always.
+        self.resume_tasks();
         Ok(())
     }
 
@@ -430,6 +453,28 @@ impl MachineBackend for StationMachine {
         self.camera_url.clone()
     }
 
+    fn tasks(&self) -> Vec<TaskView> {
+        let us = |d: std::time::Duration| u64::try_from(d.as_micros()).unwrap_or(u64::MAX);
+        self.task_stats()
+            .into_iter()
+            .map(|c| TaskView {
+                state: match &c.state {
+                    ClassState::Running => "running".into(),
+                    ClassState::Degraded { reason } => format!("degraded: {reason}"),
+                    ClassState::Stalled => "stalled".into(),
+                    ClassState::Stopped => "stopped".into(),
+                },
+                name: c.name.clone(),
+                period_us: us(c.period),
+                cycles: c.cycles,
+                overruns: c.overruns,
+                lateness_us: [us(c.lateness.p50), us(c.lateness.p99), us(c.lateness.max)],
+                execution_us: [us(c.execution.p50), us(c.execution.p99), us(c.execution.max)],
+                cpu_percent: c.cpu_percent(),
+            })
+            .collect()
+    }
+
     fn on_slot_end(&self, user: &str) {
         tracing::info!(user, "slot ended: removing programs, stopping and homing");
         self.programs.service.stop();
@@ -443,4 +488,43 @@ impl MachineBackend for StationMachine {
             }
         }
     }
+}
+
+/// The cell file's limits are the machine's: the API may narrow them, never widen them.
+fn check_parameters(cell: &AxisLimits, p: &AxisParameters) -> Result<(), BackendError> {
+    let l = &p.limits;
+    let finite =
+        [l.min, l.max, l.max_speed, l.max_acceleration, p.acceleration].iter().all(|v| v.is_finite());
+    if !finite || l.min >= l.max || l.max_speed <= 0.0 || l.max_acceleration <= 0.0 {
+        return Err(BackendError::invalid(
+            "limits",
+            "need finite values, min < max and positive maxima".into(),
+        ));
+    }
+    if l.min < cell.min || l.max > cell.max {
+        return Err(BackendError::invalid(
+            "limits",
+            format!("[{}, {}] is outside the cell file's [{}, {}]", l.min, l.max, cell.min, cell.max),
+        ));
+    }
+    if l.max_speed > cell.max_speed || l.max_acceleration > cell.max_acceleration {
+        return Err(BackendError::invalid(
+            "limits",
+            format!(
+                "speed {} / acceleration {} exceed the cell file's {} / {}",
+                l.max_speed, l.max_acceleration, cell.max_speed, cell.max_acceleration
+            ),
+        ));
+    }
+    if p.acceleration <= 0.0 || p.acceleration > l.max_acceleration {
+        return Err(BackendError::invalid("acceleration", "must be in (0, max_acceleration]".into()));
+    }
+    Ok(())
+}
+
+/// An administrator's parameters on an axis's view (what commands are validated against).
+pub(crate) fn apply_parameters(v: &mut AxisView, p: &AxisParameters) {
+    v.limits = p.limits;
+    v.acceleration = p.acceleration;
+    v.default_speed = v.default_speed.min(p.limits.max_speed);
 }

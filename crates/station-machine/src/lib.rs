@@ -118,6 +118,8 @@ pub(crate) struct Shared {
     pub(crate) rules_fingerprint: RwLock<String>,
     pub(crate) axes: Vec<AxisEntry>,
     pub(crate) views: RwLock<Vec<AxisView>>,
+    /// Axis parameters an administrator set through the API (narrower than the cell file's).
+    pub(crate) overrides: RwLock<std::collections::HashMap<String, motus_station_web::AxisParameters>>,
     pub(crate) samples: Mutex<Samples>,
     pub(crate) robot_path: Mutex<VecDeque<[f64; 2]>>,
     pub(crate) estop: AtomicBool,
@@ -209,6 +211,7 @@ impl StationMachine {
             juggler,
             axes,
             views: RwLock::new(views),
+            overrides: RwLock::new(std::collections::HashMap::new()),
             samples: Mutex::new(Samples::default()),
             robot_path: Mutex::new(VecDeque::new()),
             estop: AtomicBool::new(false),
@@ -270,6 +273,14 @@ impl StationMachine {
     /// Statistics of the cyclic task classes (cycle time, jitter, overruns, CPU).
     pub fn task_stats(&self) -> Vec<motus_station::scheduler::ClassStats> {
         self.tasks.as_ref().map(|t| t.scheduler.stats()).unwrap_or_default()
+    }
+
+    /// Resumes every degraded task class and clears its alarms (the operator's reset).
+    pub fn resume_tasks(&self) {
+        if let Some(t) = &self.tasks {
+            let _ = t.scheduler.resume(None);
+            let _ = t.scheduler.reset_alarms(None);
+        }
     }
 
     /// Resets the statistics of every task class.

@@ -3,7 +3,9 @@
 //! the station checks them, writes and signs them (the approval verifies with the cell's
 //! key), the fingerprint changes, the supervisor stops and holds the juggler until a reset,
 //! and then runs on the new rules. A student is refused (403) and nothing changes; invalid
-//! rules and rules for other drives are refused with the reason.
+//! rules and rules for other drives are refused with the reason. Axis parameters likewise:
+//! only an admin narrows an axis's limits (never beyond the cell file's), and later
+//! commands are checked against them; supervised axes are changed through the rules.
 
 mod common;
 
@@ -89,6 +91,46 @@ fn an_admin_installs_approved_rules_and_a_student_cannot() {
     admin.ok("POST", "/api/reset", Value::Null);
     let s = wait_safe(&admin, Duration::from_secs(20));
     assert_eq!(s["rules_fingerprint"], fp1.as_str());
+    // Axis parameters: a student is refused; an admin narrows y's travel; a move beyond it
+    // is refused; widening beyond the cell file and supervised axes are refused.
+    let narrow = json!({ "limits": { "min": 0.0, "max": 0.2, "max_speed": 0.05, "max_acceleration": 1.0 },
+                         "acceleration": 0.5 });
+    let (code, v) = student.call("PUT", "/api/axes/y/parameters", narrow.clone());
+    assert_eq!(code, 403, "{v}");
+    let wide = json!({ "limits": { "min": 0.0, "max": 0.9, "max_speed": 0.05, "max_acceleration": 1.0 },
+                       "acceleration": 0.5 });
+    let (code, v) = admin.call("PUT", "/api/axes/y/parameters", wide);
+    assert_eq!(code, 400, "{v}");
+    assert!(v.to_string().contains("cell file"), "{v}");
+    let (code, v) = admin.call("PUT", "/api/axes/thrower/parameters", narrow.clone());
+    assert_eq!(code, 409, "{v}");
+    admin.ok("PUT", "/api/axes/y/parameters", narrow);
+    assert_eq!(admin.axis("y")["limits"]["max"], 0.2);
+    admin.ok("POST", "/api/axes/y/home", Value::Null);
+    admin.wait_axis("y", Duration::from_secs(10), "homed", |a| a["homed"] == true && a["moving"] == false);
+    let (code, v) = admin.call("POST", "/api/axes/y/move", json!({ "target": 0.3, "speed": 0.05 }));
+    assert_eq!(code, 400, "{v}");
+    admin.ok("POST", "/api/axes/y/move", json!({ "target": 0.15, "speed": 0.05 }));
+
+    // The 1 ms trace class is listed with its jitter; the traces export as CSV.
+    let tasks = admin.ok("GET", "/api/tasks", Value::Null);
+    let fast = tasks.as_array().unwrap().iter().find(|t| t["name"] == "trace-fast").unwrap().clone();
+    assert_eq!(fast["period_us"], 1000, "{fast}");
+    assert!(fast["cycles"].as_u64().unwrap() > 1000, "{fast}");
+    eprintln!("tasks: {tasks}");
+    let (code, csv) = admin.call("GET", "/api/samples.csv", Value::Null);
+    assert_eq!(code, 200);
+    let csv = csv.as_str().unwrap().to_owned();
+    let mut lines = csv.lines();
+    let header = lines.next().unwrap();
+    assert!(header.starts_with("t_s,") && header.contains("y.position [m]"), "{header}");
+    let columns = header.split(',').count();
+    let rows: Vec<&str> = lines.collect();
+    assert!(rows.len() > 10, "{} rows", rows.len());
+    assert!(rows
+        .iter()
+        .all(|r| r.split(',').count() == columns && r.split(',').all(|v| v.parse::<f64>().is_ok())));
+
     // The audit log has the change, by whom, and the student's refusal.
     let audit = admin.ok("GET", "/api/audit", Value::Null).to_string();
     assert!(audit.contains("admin") && audit.contains("student"), "{audit}");

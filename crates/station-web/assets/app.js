@@ -341,6 +341,20 @@ function buildArm(axes) {
   }
 }
 
+// ---------- cyclic tasks ----------
+async function loadTasks() {
+  if (!S.session) return;
+  let tasks = [];
+  try { tasks = await api('GET', '/api/tasks'); } catch (_) { return; }
+  const rows = $('task-rows'); rows.replaceChildren();
+  for (const t of tasks) {
+    rows.append(el('tr', {}, el('td', { text: t.name }), el('td', { class: 'num', text: `${t.period_us / 1000} ms` }),
+      el('td', { text: t.state, class: t.state === 'running' ? '' : 'error' }),
+      el('td', { class: 'num', text: t.lateness_us.join(' / ') }), el('td', { class: 'num', text: t.overruns }),
+      el('td', { class: 'num', text: t.cpu_percent.toFixed(1) })));
+  }
+}
+
 // ---------- alarms, audit, users, camera ----------
 function renderAlarms(list) {
   const rows = $('alarm-rows'); rows.replaceChildren();
@@ -454,6 +468,7 @@ function wire() {
     act('Add user', () => api('POST', '/api/users', { name: $('new-user').value, password: $('new-password').value, role: $('new-role').value })).then(loadUsers);
   });
   setInterval(() => { if (S.session && S.session.role === 'admin') loadAudit(); }, 5000);
+  setInterval(loadTasks, 2000);
 }
 
 wire();

@@ -340,6 +340,39 @@ pub async fn samples(
     Ok(Json(json!(state.backend.samples_since(cursor))))
 }
 
+/// `GET /api/samples.csv`: the traced signals held by the station, as CSV (`t_s` and one
+/// column per signal, named with its unit), for a spreadsheet or a plotting tool.
+pub async fn samples_csv(
+    State(state): State<AppState>,
+    _auth: Auth,
+) -> Result<axum::response::Response, ApiError> {
+    use axum::response::IntoResponse;
+    let signals = state.backend.signals();
+    let batch = state.backend.samples_since(0);
+    let mut csv = String::from("t_s");
+    for s in &signals {
+        csv.push_str(&format!(",{} [{}]", s.id, s.unit));
+    }
+    csv.push('\n');
+    for row in &batch.samples {
+        csv.push_str(&format!("{:.6}", row.t));
+        for v in &row.values {
+            csv.push_str(&format!(",{v}"));
+        }
+        csv.push('\n');
+    }
+    let headers = [
+        (axum::http::header::CONTENT_TYPE, "text/csv; charset=utf-8"),
+        (axum::http::header::CONTENT_DISPOSITION, "attachment; filename=\"motus-trace.csv\""),
+    ];
+    Ok((headers, csv).into_response())
+}
+
+/// `GET /api/tasks`: the cyclic task classes (cycle time, jitter, overruns, CPU).
+pub async fn tasks(State(state): State<AppState>, _auth: Auth) -> ApiResult {
+    Ok(Json(json!(state.backend.tasks())))
+}
+
 /// `GET /api/scene`.
 pub async fn scene(State(state): State<AppState>, _auth: Auth) -> ApiResult {
     Ok(Json(json!(state.backend.scene())))

@@ -517,4 +517,30 @@ pub trait MachineBackend: Send + Sync {
     /// The slot of `user` ended: remove their programs and traces, bring the machine to a
     /// safe, homed state.
     fn on_slot_end(&self, user: &str);
+
+    /// The cyclic task classes: cycle time, jitter, overruns, state (none by default).
+    fn tasks(&self) -> Vec<TaskView> {
+        Vec::new()
+    }
+}
+
+/// One cyclic task class as the HMI shows it (`GET /api/tasks`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TaskView {
+    /// Class name.
+    pub name: String,
+    /// Period, microseconds.
+    pub period_us: u64,
+    /// `running`, `degraded: <why>`, `stalled` or `stopped`.
+    pub state: String,
+    /// Cycles since the last reset.
+    pub cycles: u64,
+    /// Overrun events.
+    pub overruns: u64,
+    /// Start lateness (jitter) p50 / p99 / max, microseconds.
+    pub lateness_us: [u64; 3],
+    /// Execution time p50 / p99 / max, microseconds.
+    pub execution_us: [u64; 3],
+    /// CPU load of the class thread, percent of one core.
+    pub cpu_percent: f64,
 }

@@ -29,7 +29,7 @@ pub mod ws;
 pub use backend::{
     AxisAction, AxisLimits, AxisParameters, AxisView, BackendError, Caller, GroupAction, GroupKind,
     GroupView, MachineBackend, PredictedReach, ProgramCheck, ProgramDiagnostic, ProgramInfo, ProgramStatus,
-    RobotScene, RunState, SafetyView, Sample, SampleBatch, SceneView, SignalView,
+    RobotScene, RunState, SafetyView, Sample, SampleBatch, SceneView, SignalView, TaskView,
 };
 pub use clock::{Clock, OffsetClock, SystemClock};
 pub use error::ApiError;

@@ -220,6 +220,18 @@ fn paths() -> Value {
         json!([{ "name": "cursor", "in": "query", "schema": { "type": "integer" } }]),
     );
     add("/api/samples", "get", samples);
+    let mut csv = op("The traced signals as CSV (t_s and one column per signal)", None, any.clone(), false);
+    set(
+        &mut csv,
+        &["responses", "200", "content"],
+        json!({ "text/csv": { "schema": { "type": "string" } } }),
+    );
+    add("/api/samples.csv", "get", csv);
+    add(
+        "/api/tasks",
+        "get",
+        op("Cyclic task classes: cycle time, jitter, overruns, CPU", None, arr(any.clone()), false),
+    );
     add("/api/scene", "get", op("2-D scene of the machines", None, any.clone(), false));
     add("/api/camera", "get", op("External camera URL, if configured", None, any.clone(), false));
     add(

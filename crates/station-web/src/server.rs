@@ -132,6 +132,8 @@ pub fn router(state: AppState) -> Router {
         .route("/api/programs/:id/run", post(api_machine::run_program))
         .route("/api/signals", get(api_machine::signals))
         .route("/api/samples", get(api_machine::samples))
+        .route("/api/samples.csv", get(api_machine::samples_csv))
+        .route("/api/tasks", get(api_machine::tasks))
         .route("/api/scene", get(api_machine::scene))
         .route("/api/camera", get(api_machine::camera))
         .route("/api/reservations", get(api_lab::reservations).post(api_lab::book))
