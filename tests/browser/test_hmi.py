@@ -172,7 +172,7 @@ def step_estop(page):
     reset_until_safe(page)
 
 
-def reset_until_safe(page, tries=3):
+def reset_until_safe(page, tries=6):
     """Presses reset until SafeToRun. A supervised machine on a loaded non-real-time host may
     be stopped again by a late cycle (its safety lease expires): the operator resets again."""
     for i in range(tries):
@@ -190,13 +190,14 @@ def step_unsafe_program(page):
     page.get_by_test_id("juggler-program").select_option(UNSAFE_PROGRAM)
     page.get_by_test_id("juggler-run").click()
     page.get_by_test_id("juggler-current").filter(has_text=UNSAFE_PROGRAM).wait_for(timeout=10000)
-    for attempt in range(3):
+    attempts = 8
+    for attempt in range(attempts):
         try:
-            page.get_by_test_id("diagnosis").filter(has_text=UNSAFE_RULE).wait_for(timeout=15000)
+            page.get_by_test_id("diagnosis").filter(has_text=UNSAFE_RULE).wait_for(timeout=12000)
             break
         except Exception:  # noqa: BLE001 - stopped for another reason (a late cycle): reset, retry
             print(f"  stopped before the rule fired: {page.get_by_test_id('diagnosis').inner_text()}")
-            if attempt == 2:
+            if attempt == attempts - 1:
                 raise
             page.get_by_test_id("reset").click()
     assert page.get_by_test_id("safe-text").inner_text().startswith("false")

@@ -16,6 +16,16 @@ use std::time::{Duration, Instant};
 
 use common::{http, SimProcess, MOTUS};
 
+/// The station process; killed when the test ends, whatever happens.
+struct Station(std::process::Child);
+
+impl Drop for Station {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
 fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
 }
@@ -79,13 +89,15 @@ fn killing_the_station_stops_every_can_drive_by_its_heartbeat_watchdog() {
     add.stdin.take().unwrap().write_all(b"kill-test-password-1\n").unwrap();
     assert!(add.wait().unwrap().success());
 
-    let mut station = Command::new(MOTUS)
-        .args(["serve", "--config", cfg])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut lines = BufReader::new(station.stdout.take().unwrap()).lines();
+    let mut station = Station(
+        Command::new(MOTUS)
+            .args(["serve", "--config", cfg])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let mut lines = BufReader::new(station.0.stdout.take().unwrap()).lines();
     let t0 = Instant::now();
     loop {
         let l = lines.next().expect("station exited").unwrap();
@@ -161,8 +173,8 @@ fn killing_the_station_stops_every_can_drive_by_its_heartbeat_watchdog() {
     }
 
     // SIGKILL the station: no clean-up, no last command.
-    station.kill().unwrap();
-    station.wait().unwrap();
+    station.0.kill().unwrap();
+    station.0.wait().unwrap();
     let killed = Instant::now();
     for n in ["2", "3", "4"] {
         let t = Instant::now();

@@ -309,11 +309,21 @@ impl MachineBackend for StationMachine {
     }
 
     fn signals(&self) -> Vec<SignalView> {
-        self.shared
+        let mut v: Vec<SignalView> = self
+            .shared
             .axes
             .iter()
             .map(|a| SignalView { id: format!("{}.position", a.view.id), unit: a.view.unit.clone() })
-            .collect()
+            .collect();
+        if let Some(rec) = self.shared.recorder.get() {
+            let rec = lock(rec);
+            v.extend(rec.signals().iter().map(|s| SignalView { id: s.name.clone(), unit: s.unit.clone() }));
+        }
+        v
+    }
+
+    fn trace_csv(&self) -> Option<String> {
+        StationMachine::trace_csv(self)
     }
 
     fn samples_since(&self, cursor: u64) -> SampleBatch {

@@ -28,7 +28,7 @@ pub fn free_udp_block() -> io::Result<u16> {
 
 /// Writes the demo cell into `dir` with the station listening on `listen`; returns the path
 /// of the cell file. The juggler runs its 1 ms UDP cycle on a shared, non-real-time host, so
-/// its rules get a 1 ms cycle, a 9 ms lease and data up to 8 cycles old (the shipped rules
+/// its rules get a 1 ms cycle, a 9 ms lease and data up to 15 cycles old (the shipped rules
 /// are for the real machine's 400 us, 0.8 ms and 3 cycles); the supervisor's prediction
 /// horizon grows by the same amounts, so the demo is more cautious, not less.
 pub fn write_demo_cell(dir: &Path, listen: &str) -> io::Result<PathBuf> {
@@ -41,7 +41,7 @@ pub fn write_demo_cell(dir: &Path, listen: &str) -> io::Result<PathBuf> {
     let rules = motus_safety::JUGGLER_TOML
         .replace("cycle_time = 0.0004", "cycle_time = 0.001")
         .replace("lease_time = 0.0008", "lease_time = 0.009")
-        .replace("max_sample_age = 3 ", "max_sample_age = 8 ");
+        .replace("max_sample_age = 3 ", "max_sample_age = 15 ");
     std::fs::write(dir.join("juggler.toml"), &rules)?;
     approve_demo_rules(dir, &rules)?;
     let cell = DEMO_CELL

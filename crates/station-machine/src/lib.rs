@@ -121,6 +121,8 @@ pub(crate) struct Shared {
     /// Axis parameters an administrator set through the API (narrower than the cell file's).
     pub(crate) overrides: RwLock<std::collections::HashMap<String, motus_station_web::AxisParameters>>,
     pub(crate) samples: Mutex<Samples>,
+    /// The cyclic tasks' traces (full rate); the poller adds their latest values to its rows.
+    pub(crate) recorder: std::sync::OnceLock<Arc<Mutex<motus_station::trace::Recorder>>>,
     pub(crate) robot_path: Mutex<VecDeque<[f64; 2]>>,
     pub(crate) estop: AtomicBool,
     pub(crate) faults: Arc<FaultTable>,
@@ -213,6 +215,7 @@ impl StationMachine {
             views: RwLock::new(views),
             overrides: RwLock::new(std::collections::HashMap::new()),
             samples: Mutex::new(Samples::default()),
+            recorder: std::sync::OnceLock::new(),
             robot_path: Mutex::new(VecDeque::new()),
             estop: AtomicBool::new(false),
             faults: Arc::clone(&faults),
@@ -220,6 +223,14 @@ impl StationMachine {
             epoch: Instant::now(),
             stop: AtomicBool::new(false),
         });
+        let mut sinks: Vec<Arc<dyn AlarmSink>> = vec![alarms];
+        sinks.extend(options.alarm_sink.clone());
+        let sink: Arc<dyn AlarmSink> = Arc::new(alarms::Tee(sinks));
+        // The cyclic tasks first: the poller shows their traced signals too.
+        let tasks = tasks::start(cell, shared.juggler.as_ref(), Arc::clone(&sink))?;
+        if let Some(t) = &tasks {
+            let _ = shared.recorder.set(Arc::clone(&t.recorder));
+        }
         let mut threads = Vec::new();
         {
             let s = Arc::clone(&shared);
@@ -230,10 +241,6 @@ impl StationMachine {
                     .spawn(move || poller::run(&s, poll))?,
             );
         }
-        let mut sinks: Vec<Arc<dyn AlarmSink>> = vec![alarms];
-        sinks.extend(options.alarm_sink.clone());
-        let sink: Arc<dyn AlarmSink> = Arc::new(alarms::Tee(sinks));
-        let tasks = tasks::start(cell, shared.juggler.as_ref(), Arc::clone(&sink))?;
         {
             let s = Arc::clone(&shared);
             let mut rec = Reconnector::new(Backoff::default(), sink, faults);
@@ -295,6 +302,16 @@ impl StationMachine {
         let t = self.tasks.as_ref()?;
         let rec = lock(&t.recorder);
         rec.latest(rec.find(signal)?)
+    }
+
+    /// Every signal of the cyclic tasks at its full rate, as CSV (`None`: no cyclic trace).
+    pub fn trace_csv(&self) -> Option<String> {
+        let t = self.tasks.as_ref()?;
+        let rec = lock(&t.recorder);
+        let ids: Vec<_> = rec.signals().iter().map(|s| s.id).collect();
+        let mut out = Vec::new();
+        rec.write_csv(&ids, &mut out).ok()?;
+        String::from_utf8(out).ok()
     }
 
     /// Stops the threads and the cell.

@@ -49,6 +49,11 @@ pub(crate) fn run(s: &Shared, period: Duration) {
             views.push(v);
         }
         *s.views.write().unwrap_or_else(PoisonError::into_inner) = views;
+        // The cyclic traces' latest values (their full rate is in the recorder: trace.csv).
+        if let Some(rec) = s.recorder.get() {
+            let rec = lock(rec);
+            row.extend(rec.signals().iter().map(|sig| rec.latest(sig.id).map_or(f64::NAN, |x| x.value)));
+        }
         {
             let t = s.epoch.elapsed().as_secs_f64();
             let mut smp = lock(&s.samples);

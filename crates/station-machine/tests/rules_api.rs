@@ -64,8 +64,8 @@ fn an_admin_installs_approved_rules_and_a_student_cannot() {
     assert!(v.to_string().contains("drives"), "{v}");
     assert_eq!(safety(&admin)["rules_fingerprint"], fp0.as_str());
 
-    // An admin tightens the data-age limit (8 -> 7 cycles): new fingerprint, drives held.
-    let narrowed = text.replacen("max_sample_age = 8", "max_sample_age = 7", 1);
+    // An admin tightens the data-age limit (15 -> 14 cycles): new fingerprint, drives held.
+    let narrowed = text.replacen("max_sample_age = 15", "max_sample_age = 14", 1);
     assert_ne!(narrowed, text);
     let v = admin.ok("PUT", "/api/safety/rules", json!({ "toml": narrowed }));
     eprintln!("installed: {v}");
@@ -130,6 +130,19 @@ fn an_admin_installs_approved_rules_and_a_student_cannot() {
     assert!(rows
         .iter()
         .all(|r| r.split(',').count() == columns && r.split(',').all(|v| v.parse::<f64>().is_ok())));
+
+    // The juggler's 1 kHz trace: in the HMI's signals (latest value per row) and at full
+    // rate in trace.csv.
+    let signals = admin.ok("GET", "/api/signals", Value::Null).to_string();
+    assert!(signals.contains("trace-fast/thrower-drive.position"), "{signals}");
+    let (code, trace) = admin.call("GET", "/api/trace.csv", Value::Null);
+    assert_eq!(code, 200);
+    let trace = trace.as_str().unwrap().to_owned();
+    let header = trace.lines().next().unwrap();
+    assert!(header.contains("trace-fast/thrower-drive.position"), "{header}");
+    let rows = trace.lines().count() - 1;
+    assert!(rows > 1000, "{rows} rows at 1 kHz");
+    eprintln!("trace.csv: {rows} rows; {header}");
 
     // The audit log has the change, by whom, and the student's refusal.
     let audit = admin.ok("GET", "/api/audit", Value::Null).to_string();

@@ -241,7 +241,7 @@ function drawPlot() {
   const tEnd = S.plot[S.plot.length - 1].t; const tStart = tEnd - PLOT_SECONDS;
   const idx = S.signals.map((s, i) => [s.id, i]).filter(([id]) => S.picked.has(id));
   let lo = Infinity, hi = -Infinity;
-  for (const smp of S.plot) for (const [, i] of idx) { const v = smp.values[i]; if (v < lo) lo = v; if (v > hi) hi = v; }
+  for (const smp of S.plot) for (const [, i] of idx) { const v = smp.values[i]; if (v === null || v === undefined) continue; if (v < lo) lo = v; if (v > hi) hi = v; }
   if (!isFinite(lo)) return;
   if (hi - lo < 1e-6) { hi += 0.5; lo -= 0.5; }
   const X = (t) => ((t - tStart) / PLOT_SECONDS) * (c.width - 50) + 45;
@@ -250,7 +250,11 @@ function drawPlot() {
   g.fillText(hi.toFixed(3), 2, 12); g.fillText(lo.toFixed(3), 2, c.height - 4);
   idx.forEach(([id, i], k) => {
     g.strokeStyle = COLORS[k % COLORS.length]; g.beginPath();
-    S.plot.forEach((smp, j) => { const x = X(smp.t), y = Y(smp.values[i]); if (j) g.lineTo(x, y); else g.moveTo(x, y); });
+    let gap = true; // no value yet (null): the line starts again after it
+    S.plot.forEach((smp) => {
+      const v = smp.values[i]; if (v === null || v === undefined) { gap = true; return; }
+      const x = X(smp.t), y = Y(v); if (gap) g.moveTo(x, y); else g.lineTo(x, y); gap = false;
+    });
     g.stroke(); g.fillStyle = g.strokeStyle; g.fillText(id, 60 + k * 120, 12);
   });
 }

@@ -368,6 +368,23 @@ pub async fn samples_csv(
     Ok((headers, csv).into_response())
 }
 
+/// `GET /api/trace.csv`: the cyclic tasks' signals at their full rate (e.g. 1 kHz), as CSV.
+pub async fn trace_csv(
+    State(state): State<AppState>,
+    _auth: Auth,
+) -> Result<axum::response::Response, ApiError> {
+    use axum::response::IntoResponse;
+    let csv = state
+        .backend
+        .trace_csv()
+        .ok_or_else(|| ApiError::not_found("this station traces no cyclic signals"))?;
+    let headers = [
+        (axum::http::header::CONTENT_TYPE, "text/csv; charset=utf-8"),
+        (axum::http::header::CONTENT_DISPOSITION, "attachment; filename=\"motus-cyclic-trace.csv\""),
+    ];
+    Ok((headers, csv).into_response())
+}
+
 /// `GET /api/tasks`: the cyclic task classes (cycle time, jitter, overruns, CPU).
 pub async fn tasks(State(state): State<AppState>, _auth: Auth) -> ApiResult {
     Ok(Json(json!(state.backend.tasks())))

@@ -522,6 +522,11 @@ pub trait MachineBackend: Send + Sync {
     fn tasks(&self) -> Vec<TaskView> {
         Vec::new()
     }
+
+    /// Every signal of the cyclic tasks at its full rate, as CSV (`None`: none traced).
+    fn trace_csv(&self) -> Option<String> {
+        None
+    }
 }
 
 /// One cyclic task class as the HMI shows it (`GET /api/tasks`).

@@ -226,7 +226,14 @@ fn paths() -> Value {
         &["responses", "200", "content"],
         json!({ "text/csv": { "schema": { "type": "string" } } }),
     );
-    add("/api/samples.csv", "get", csv);
+    add("/api/samples.csv", "get", csv.clone());
+    let mut trace = op("The cyclic tasks' signals at full rate as CSV (404: none)", None, any.clone(), false);
+    set(
+        &mut trace,
+        &["responses", "200", "content"],
+        json!({ "text/csv": { "schema": { "type": "string" } } }),
+    );
+    add("/api/trace.csv", "get", trace);
     add(
         "/api/tasks",
         "get",

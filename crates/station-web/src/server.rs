@@ -134,6 +134,7 @@ pub fn router(state: AppState) -> Router {
         .route("/api/samples", get(api_machine::samples))
         .route("/api/samples.csv", get(api_machine::samples_csv))
         .route("/api/tasks", get(api_machine::tasks))
+        .route("/api/trace.csv", get(api_machine::trace_csv))
         .route("/api/scene", get(api_machine::scene))
         .route("/api/camera", get(api_machine::camera))
         .route("/api/reservations", get(api_lab::reservations).post(api_lab::book))
