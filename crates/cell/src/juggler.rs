@@ -215,7 +215,10 @@ impl SegmentSim {
     fn spawn(&mut self) -> Result<(), CellError> {
         let err = |reason: String| CellError::Simulator { name: self.uri.clone(), reason };
         let join = || open_link(&self.uri, false).map_err(|e| err(format!("cannot join {}: {e}", self.uri)));
-        let cycle = self.options.juggler_cycle;
+        // The rules' cycle is the segment's (a rules file written for a slower simulated
+        // segment gets it); never faster than the configured simulation cycle.
+        let rules_cycle = Duration::from_secs_f64(self.rules.config().supervisor.cycle_time.clamp(0.0, 1.0));
+        let cycle = self.options.juggler_cycle.max(rules_cycle);
         let config = MnConfig {
             cycle,
             pres_timeout: (cycle / 4).clamp(Duration::from_micros(100), Duration::from_micros(300)),

@@ -28,7 +28,15 @@ fn hmi_on_the_real_demo_in_headless_chromium() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
     let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
     let addr = format!("127.0.0.1:{port}");
-    let mut child = Command::new(MOTUS)
+    // The release binary when it is built (scripts/test.sh builds it): the whole cell in a
+    // debug build, beside Chromium, loads a 2-core host enough to make the juggler late.
+    // Beside the debug binary: <target>/debug/motus -> <target>/release/motus.
+    let debug = PathBuf::from(MOTUS);
+    let release =
+        debug.parent().and_then(|d| d.parent()).map(|t| t.join("release/motus")).unwrap_or_default();
+    let bin = if release.exists() { release } else { debug };
+    println!("demo binary: {}", bin.display());
+    let mut child = Command::new(&bin)
         .args(["demo", "--listen", &addr])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())

@@ -66,7 +66,7 @@ fn cam_units(pattern: Pattern, name: &str) -> (f64, f64, f64) {
         (Pattern::Collide, "vertical_right") => (4000.0, 3000.0, 0.5),
         (_, "vertical_right") => (14_000.0, 2000.0, 0.5),
         (Pattern::Limit, "thrower") => (0.0, 5000.0, 0.75),
-        (_, "thrower") => (-3800.0, 2800.0, 0.25),
+        (_, "thrower") => (-3500.0, 2500.0, 0.25),
         _ => (0.0, 0.0, 0.0),
     }
 }

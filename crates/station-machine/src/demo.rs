@@ -27,10 +27,11 @@ pub fn free_udp_block() -> io::Result<u16> {
 }
 
 /// Writes the demo cell into `dir` with the station listening on `listen`; returns the path
-/// of the cell file. The juggler runs its 1 ms UDP cycle on a shared, non-real-time host, so
-/// its rules get a 1 ms cycle, a 9 ms lease and data up to 15 cycles old (the shipped rules
-/// are for the real machine's 400 us, 0.8 ms and 3 cycles); the supervisor's prediction
-/// horizon grows by the same amounts, so the demo is more cautious, not less.
+/// of the cell file. The juggler's segment runs over UDP on a shared, non-real-time host, so
+/// its rules get a 1 ms cycle (the simulated segment follows it), a 9 ms lease and data up to
+/// 15 cycles old (the shipped rules are for the real machine's 400 us, 0.8 ms and 3 cycles);
+/// the supervisor's prediction horizon grows with them, so the demo is more cautious, not
+/// less.
 pub fn write_demo_cell(dir: &Path, listen: &str) -> io::Result<PathBuf> {
     let programs = dir.join("programs");
     std::fs::create_dir_all(&programs)?;
