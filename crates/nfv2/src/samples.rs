@@ -17,8 +17,7 @@
 //!
 //! # Interpolation
 //! [`SampleHistory::position_at`] interpolates linearly between the two samples around
-//! `t` (passing over a sample whose exchange took clearly longer than its neighbours',
-//! whose timestamp is therefore uncertain, when a sharp one lies close by), extrapolates from the last two samples for at most a small margin after the newest
+//! `t`, extrapolates from the last two samples for at most a small margin after the newest
 //! one, and refuses anything else (older than the history, newer than the margin, or
 //! inside a gap of missed samples longer than the allowed gap).
 //!
@@ -63,13 +62,6 @@ impl PositionSample {
     #[must_use]
     pub fn at(&self) -> Instant {
         self.at
-    }
-
-    /// How long the exchange took, request to answer: twice the uncertainty of the
-    /// midpoint.
-    #[must_use]
-    pub fn span(&self) -> Duration {
-        self.reply_at.saturating_duration_since(self.request_at)
     }
 }
 
@@ -203,7 +195,8 @@ impl SampleHistory {
         }
         // first.at() <= t < last.at(): the first sample after t exists and is not the first.
         let i = self.samples.partition_point(|s| s.at() <= t);
-        let (Some(a), Some(b)) = self.bracket(i) else {
+        let (Some(a), Some(b)) = (i.checked_sub(1).and_then(|j| self.samples.get(j)), self.samples.get(i))
+        else {
             return Err(WhereError::NoSamples);
         };
         let gap = b.at() - a.at();
@@ -214,38 +207,6 @@ impl SampleHistory {
         Ok(a.counts as f64 + f * (b.counts - a.counts) as f64)
     }
 }
-
-impl SampleHistory {
-    /// The two samples to interpolate between for a time just before sample `i`: the
-    /// neighbours `i - 1` and `i`, except that a neighbour whose exchange took clearly
-    /// longer than its peers' (the host was descheduled between request and answer, so
-    /// its midpoint is uncertain by half the delay) is passed over for the next sharp
-    /// sample on the same side, [`BRACKET_SEARCH`] samples at most, if the gap stays
-    /// interpolable.
-    fn bracket(&self, i: usize) -> (Option<&PositionSample>, Option<&PositionSample>) {
-        let near = (i.saturating_sub(BRACKET_SEARCH))..(i + BRACKET_SEARCH).min(self.samples.len());
-        let sharpest = near.filter_map(|j| self.samples.get(j)).map(PositionSample::span).min();
-        let sharp = |s: &&PositionSample| sharpest.is_some_and(|m| s.span() <= m + SHARP_SLACK);
-        let plain = (i.checked_sub(1).and_then(|j| self.samples.get(j)), self.samples.get(i));
-        let before =
-            (i.saturating_sub(BRACKET_SEARCH)..i).rev().filter_map(|j| self.samples.get(j)).find(sharp);
-        let after = (i..i + BRACKET_SEARCH).filter_map(|j| self.samples.get(j)).find(sharp);
-        match (before, after) {
-            (Some(a), Some(b)) if b.at().saturating_duration_since(a.at()) <= self.max_gap => {
-                (Some(a), Some(b))
-            }
-            _ => plain,
-        }
-    }
-}
-
-/// How many samples on each side [`SampleHistory::position_at`] looks through for a sharp
-/// one.
-const BRACKET_SEARCH: usize = 4;
-
-/// How much longer than the shortest nearby exchange an exchange may take and still give
-/// a sharp timestamp.
-const SHARP_SLACK: Duration = Duration::from_micros(800);
 
 fn velocity(a: &PositionSample, b: &PositionSample) -> Option<f64> {
     let dt = b.at().checked_duration_since(a.at())?.as_secs_f64();
@@ -387,34 +348,6 @@ mod tests {
         // Out-of-order samples are ignored.
         h.push(sample(t0, 90, 0));
         assert_eq!(h.latest().map(|s| s.counts), Some(400));
-    }
-
-    #[test]
-    fn a_sample_with_a_slow_exchange_is_passed_over() {
-        // The axis moves at 10 counts/ms. The sample for 20 ms was answered on time but
-        // decoded 6 ms late (the host was busy): its midpoint says 23 ms.
-        let t0 = Instant::now() + Duration::from_secs(1);
-        let mut h = SampleHistory::new(8, Duration::from_millis(5), Duration::from_millis(50));
-        for ms in [0, 10] {
-            h.push(sample(t0, ms, 10 * ms as i64));
-        }
-        let late = t0 + Duration::from_millis(19);
-        h.push(PositionSample::new(late, late + Duration::from_millis(8), 200, Duration::ZERO));
-        for ms in [30, 40] {
-            h.push(sample(t0, ms, 10 * ms as i64));
-        }
-        // Between 10 and 23 ms, and between 23 and 30 ms, the sharp samples at 10 and 30 ms
-        // are used: the true positions.
-        for ms in [15, 22, 25, 28] {
-            let got = h.position_at(t0 + Duration::from_millis(ms)).unwrap();
-            assert!((got - 10.0 * ms as f64).abs() < 1e-9, "at {ms} ms: {got}");
-        }
-        // Without a sharp alternative within the gap it is still used.
-        let mut h = SampleHistory::new(8, Duration::from_millis(5), Duration::from_millis(15));
-        h.push(sample(t0, 10, 100));
-        h.push(PositionSample::new(late, late + Duration::from_millis(8), 200, Duration::ZERO));
-        h.push(sample(t0, 30, 300));
-        assert!((h.position_at(t0 + Duration::from_millis(15)).unwrap() - 138.461_538).abs() < 1e-3);
     }
 
     #[test]
