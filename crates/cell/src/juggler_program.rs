@@ -140,15 +140,19 @@ impl MotionProgram for SelectedCam {
         match &self.phase {
             Phase::Ramp { since, from } => {
                 let w = smoothstep(t.saturating_sub(*since).as_secs_f64() / RAMP_IN.as_secs_f64());
-                let from: Vec<f64> = match from {
-                    RampStart::Fixed(f) => f.clone(),
+                let blend = |o: &mut i32, c: i32, f: f64| *o = (f + (f64::from(c) - f) * w).round() as i32;
+                match from {
+                    RampStart::Fixed(f) => {
+                        for ((o, c), f) in out.iter_mut().zip(&self.cam).zip(f) {
+                            blend(o, *c, *f);
+                        }
+                    }
                     RampStart::Pattern(p) => {
                         cam(&mut self.cams, *p, &mut self.old);
-                        self.old.iter().map(|x| f64::from(*x)).collect()
+                        for ((o, c), f) in out.iter_mut().zip(&self.cam).zip(&self.old) {
+                            blend(o, *c, f64::from(*f));
+                        }
                     }
-                };
-                for ((o, c), f) in out.iter_mut().zip(&self.cam).zip(&from) {
-                    *o = (f + (f64::from(*c) - f) * w).round() as i32;
                 }
                 if w >= 1.0 {
                     self.phase = Phase::Run;

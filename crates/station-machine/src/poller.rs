@@ -15,11 +15,12 @@ pub(crate) fn run(s: &Shared, period: Duration) {
     while !s.stop.load(Ordering::Relaxed) {
         let mut row = Vec::with_capacity(s.axes.len());
         let mut views = Vec::with_capacity(s.axes.len());
-        let overrides = s.overrides.read().unwrap_or_else(PoisonError::into_inner).clone();
         for a in &s.axes {
             let mut v = a.view.clone();
-            if let Some(p) = overrides.get(&v.id) {
-                crate::backend::apply_parameters(&mut v, p);
+            // Copied out: the lock is not held while the axis is read over its link.
+            let params = s.overrides.read().unwrap_or_else(PoisonError::into_inner).get(&v.id).copied();
+            if let Some(p) = params {
+                crate::backend::apply_parameters(&mut v, &p);
             }
             let state = lock(&a.axis).read_state();
             match state {

@@ -6,12 +6,8 @@
 //! the alarm clears, and the axis is homed and moved again through the API.
 
 use std::sync::Arc;
-use std::time::{Duration, Instant, SystemTime};
+use std::time::{Duration, Instant};
 
-use motus_lab::{Lab, LabConfig, MemoryStore, Role, UnixMs};
-use motus_station_machine::alarms::LabAlarmSink;
-use motus_station_machine::{demo, StationMachine, StationOptions};
-use motus_station_web::{start, WebConfig};
 use serde_json::Value;
 
 mod common;
@@ -20,23 +16,9 @@ use common::Client;
 #[test]
 fn a_simulator_killed_in_motion_faults_only_its_axes_and_comes_back_through_the_api() {
     let _ = tracing_subscriber::fmt().with_env_filter("info").with_test_writer().try_init();
-    let dir = tempfile::tempdir().unwrap();
-    let cell_file = demo::write_demo_cell(dir.path(), "127.0.0.1:0").unwrap();
-    let lab = Arc::new(Lab::new(Arc::new(MemoryStore::new()), LabConfig::default()));
-    lab.users().add("admin", "chaos-admin-password-1", Role::Admin, UnixMs::from(SystemTime::now())).unwrap();
-    let options = StationOptions {
-        alarm_sink: Some(LabAlarmSink::start(Arc::clone(&lab)).unwrap()),
-        ..StationOptions::default()
-    };
-    let machine = Arc::new(StationMachine::start_file(&cell_file, options).unwrap_or_else(|e| panic!("{e}")));
-    let config = WebConfig {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        station: "Motus demo cell".into(),
-        ..WebConfig::default()
-    };
-    let web = start(config, machine.clone(), lab).unwrap();
-    let addr = web.addr().to_string();
-    let c = Client::login(&addr, "admin", "chaos-admin-password-1");
+    let st = common::station();
+    let (machine, addr) = (Arc::clone(&st.machine), st.addr.clone());
+    let c = Client::login(&addr, "admin", "admin-password-1");
 
     // Home a PS1A module and a gantry axis, then move both.
     for id in ["linear1", "y"] {
@@ -112,5 +94,4 @@ fn a_simulator_killed_in_motion_faults_only_its_axes_and_comes_back_through_the_
         a["moving"] == false && (a["position"].as_f64().unwrap_or(9.0) - 0.02).abs() < 2e-5
     });
     eprintln!("linear1 back in service at {}", a["position"]);
-    drop(web);
 }
