@@ -107,19 +107,7 @@ fn killing_the_station_stops_every_can_drive_by_its_heartbeat_watchdog() {
         assert!(t0.elapsed() < Duration::from_secs(60));
     }
     std::thread::spawn(move || for _ in lines {});
-    let body = r#"{"user":"admin","password":"kill-test-password-1"}"#;
-    let (st, head, b) = http(&listen, "POST", "/api/login", &[("Content-Type", "application/json")], body);
-    assert_eq!(st, 200, "{b}");
-    let cookie = head
-        .lines()
-        .find_map(|l| l.strip_prefix("set-cookie: ").or_else(|| l.strip_prefix("Set-Cookie: ")))
-        .unwrap()
-        .split(';')
-        .next()
-        .unwrap()
-        .to_owned();
-    let csrf =
-        serde_json::from_str::<serde_json::Value>(&b).unwrap()["csrf_token"].as_str().unwrap().to_owned();
+    let (cookie, csrf) = common::login(&listen, "admin", "kill-test-password-1");
     let auth =
         [("Cookie", cookie.as_str()), ("X-CSRF-Token", csrf.as_str()), ("Content-Type", "application/json")];
     let axis = |id: &str| -> serde_json::Value {

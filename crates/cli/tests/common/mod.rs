@@ -67,3 +67,20 @@ pub fn http(
     let status = head.split_whitespace().nth(1).unwrap().parse().unwrap();
     (status, head.to_owned(), body.to_owned())
 }
+
+/// Logs in to a station's API: (session cookie `name=value`, CSRF token).
+pub fn login(addr: &str, user: &str, password: &str) -> (String, String) {
+    let body = serde_json::json!({ "user": user, "password": password }).to_string();
+    let (st, head, b) = http(addr, "POST", "/api/login", &[("Content-Type", "application/json")], &body);
+    assert_eq!(st, 200, "{b}");
+    let cookie = head
+        .lines()
+        .find_map(|l| l.strip_prefix("set-cookie: ").or_else(|| l.strip_prefix("Set-Cookie: ")))
+        .unwrap()
+        .split(';')
+        .next()
+        .unwrap()
+        .to_owned();
+    let v: serde_json::Value = serde_json::from_str(&b).unwrap();
+    (cookie, v["csrf_token"].as_str().unwrap().to_owned())
+}
