@@ -43,7 +43,7 @@ fn run(label: &str, cycle: Duration, pres_timeout: Duration, max_miss: f64, spin
 fn veth_segment_1ms() {
     let _one_at_a_time = common::exclusive();
     // See tests/udp.rs for the limits.
-    run("veth 1 ms", Duration::from_millis(1), Duration::from_micros(300), 0.005, false);
+    run("veth 1 ms", Duration::from_millis(1), Duration::from_micros(300), 0.02, false);
 }
 
 #[test]

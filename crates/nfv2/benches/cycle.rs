@@ -3,15 +3,20 @@
 //! (a position set-point and two queries per slave and cycle), packed and unpacked,
 //! against the physical limit of the wire (target: within 10 % of it); the source's 2 ms
 //! cycle is checked against the same limit. Then criterion measures cheap hot paths:
-//! scanning an answer, planning a cycle, one tracking-filter step.
+//! scanning an answer, planning a cycle, one tracking-filter step, "where at t" in a full
+//! history.
 //!
-//! `cargo bench -p motus-nfv2 --bench cycle` (`-- criterion` to skip the pty runs,
+//! `cargo bench -p motus-nfv2 --bench cycle` (`-- <name>`, e.g. `-- position_at`, runs one
+//! criterion benchmark without the pty runs;
 //! `MOTUS_NFV2_BENCH_SECONDS` to change their length, 5 s by default).
 #![allow(missing_docs, clippy::panic, clippy::unwrap_used, clippy::expect_used)]
 
 use criterion::{black_box, Criterion};
 use motus_nfv2::pantilt::filter::{Limits, SecondOrderLimiter};
-use motus_nfv2::{scan_frame, CyclePlan, DriveConfig, Nfv2Bus, Packing, Scheduler, SchedulerConfig};
+use motus_nfv2::{
+    scan_frame, CyclePlan, DriveConfig, Nfv2Bus, Packing, PositionSample, SampleHistory, Scheduler,
+    SchedulerConfig,
+};
 use motus_nfv2_protocol::{Command, CommandCode as C, DeviceProfile, Frame, Revision, RS485_BAUD};
 use motus_nfv2_sim::{LineOptions, SimLine};
 use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink};
@@ -157,5 +162,16 @@ fn main() {
             f.step(black_box(20.0 * (t * 1.2566).sin()), 25.1 * (t * 1.2566).cos())
         })
     });
+    // "Where was the head at t": the weighted local fit in a full 8192-sample history.
+    let t0 = std::time::Instant::now();
+    let mut history = SampleHistory::new(8192, Duration::from_millis(20), Duration::from_millis(40));
+    for k in 0..8192u32 {
+        let at = t0 + Duration::from_micros(15_000 * u64::from(k));
+        let counts = (20_000.0 * (f64::from(k) * 0.015 * 1.2566).sin()) as i64;
+        let rtt = Duration::from_micros(5_500 + u64::from(k % 7) * 400);
+        history.push(PositionSample::new(at, at + rtt, counts, Duration::ZERO));
+    }
+    let query = t0 + Duration::from_micros(15_000 * 6000 + 7_300);
+    c.bench_function("position_at", |b| b.iter(|| history.position_at(black_box(query))));
     c.final_summary();
 }

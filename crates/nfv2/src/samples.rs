@@ -16,10 +16,19 @@
 //! hundredths of a degree at the pan-tilt head's 30 deg/s.
 //!
 //! # Interpolation
-//! [`SampleHistory::position_at`] interpolates linearly between the two samples around
-//! `t`, extrapolates from the last two samples for at most a small margin after the newest
-//! one, and refuses anything else (older than the history, newer than the margin, or
-//! inside a gap of missed samples longer than the allowed gap).
+//! [`SampleHistory::position_at`] fits a quadratic in time, by weighted least squares, to
+//! the two samples around `t` and up to one more on each side (a local regression), and
+//! evaluates it at `t`. Each sample weighs by how well its instant is known: a round trip
+//! longer than the quickest one in the window means the host held the exchange up
+//! somewhere (the scheduler thread descheduled before the request or after the answer), so
+//! its instant is uncertain by half the excess; the weight is
+//! `1 / (σ0² + (excess / 2)²)` with σ0 = 0.5 ms, the regulator's quantisation. A slowed
+//! sample thus barely moves the fit, while the quadratic follows the curvature that a
+//! straight line across the gap it leaves would cut. With fewer than four samples in
+//! reach the two around `t` are interpolated linearly. After the newest sample it
+//! extrapolates from the last two for at most a small margin, and it refuses anything else
+//! (older than the history, newer than the margin, or inside a gap of missed samples
+//! longer than the allowed gap; the fit never reaches across such a gap either).
 //!
 //! # Plausibility
 //! The NFv2 CRC-8 misses some single-byte corruptions, so [`Gate`] accepts a position only
@@ -62,6 +71,12 @@ impl PositionSample {
     #[must_use]
     pub fn at(&self) -> Instant {
         self.at
+    }
+
+    /// From the request handed to the line to the answer decoded.
+    #[must_use]
+    pub fn round_trip(&self) -> Duration {
+        self.reply_at.saturating_duration_since(self.request_at)
     }
 }
 
@@ -203,8 +218,81 @@ impl SampleHistory {
         if gap > self.max_gap {
             return Err(WhereError::Gap { gap, max_gap: self.max_gap });
         }
+        if let Some(fitted) = self.local_fit(i, t) {
+            return Ok(fitted);
+        }
         let f = (t - a.at()).as_secs_f64() / gap.as_secs_f64().max(f64::MIN_POSITIVE);
         Ok(a.counts as f64 + f * (b.counts - a.counts) as f64)
+    }
+
+    /// The weighted quadratic fit of the module documentation around the bracket
+    /// `(i - 1, i)`; `None` with fewer than four samples in reach or a degenerate system.
+    fn local_fit(&self, i: usize, t: Instant) -> Option<f64> {
+        let within_gap = |older: usize| -> bool {
+            match (self.samples.get(older), self.samples.get(older + 1)) {
+                (Some(p), Some(q)) => q.at().saturating_duration_since(p.at()) <= self.max_gap,
+                _ => false,
+            }
+        };
+        let mut lo = i.checked_sub(1)?;
+        let mut hi = i;
+        for _ in 0..FIT_REACH {
+            if lo > 0 && within_gap(lo - 1) {
+                lo -= 1;
+            }
+            if hi + 1 < self.samples.len() && within_gap(hi) {
+                hi += 1;
+            }
+        }
+        let window = self.samples.range(lo..=hi);
+        if window.len() < 4 {
+            return None;
+        }
+        let quickest = window.clone().map(PositionSample::round_trip).min()?;
+        let origin = self.samples.get(i - 1)?.counts;
+        // Normal equations of y = c0 + c1 τ + c2 τ², τ in ms from t, y in counts from origin.
+        let (mut s, mut r) = ([0.0f64; 5], [0.0f64; 3]);
+        for p in window {
+            let tau = signed_ms(p.at(), t);
+            let excess = (p.round_trip() - quickest).as_secs_f64() * 1000.0;
+            let w = 1.0 / (FIT_FLOOR_MS * FIT_FLOOR_MS + 0.25 * excess * excess);
+            let y = (p.counts - origin) as f64;
+            let mut tk = w;
+            for (k, sk) in s.iter_mut().enumerate() {
+                *sk += tk;
+                if let Some(rk) = r.get_mut(k) {
+                    *rk += tk * y;
+                }
+                tk *= tau;
+            }
+        }
+        let [s0, s1, s2, s3, s4] = s;
+        let [r0, r1, r2] = r;
+        let det3 = |a: [f64; 9]| {
+            a[0] * (a[4] * a[8] - a[5] * a[7]) - a[1] * (a[3] * a[8] - a[5] * a[6])
+                + a[2] * (a[3] * a[7] - a[4] * a[6])
+        };
+        let det = det3([s0, s1, s2, s1, s2, s3, s2, s3, s4]);
+        let scale = s0 * s2 * s4;
+        if !det.is_finite() || det.abs() <= 1e-9 * scale.abs() {
+            return None;
+        }
+        // Cramer's rule for c0 alone: the value at τ = 0.
+        let c0 = det3([r0, s1, s2, r1, s2, s3, r2, s3, s4]) / det;
+        c0.is_finite().then_some(origin as f64 + c0)
+    }
+}
+
+/// Samples taken into the fit on each side beyond the two around `t`.
+const FIT_REACH: usize = 2;
+/// The timing uncertainty of an unhindered exchange (the regulator's quantisation), ms.
+const FIT_FLOOR_MS: f64 = 0.5;
+
+/// `a - b` in milliseconds, signed.
+fn signed_ms(a: Instant, b: Instant) -> f64 {
+    match a.checked_duration_since(b) {
+        Some(d) => d.as_secs_f64() * 1000.0,
+        None => -(b.saturating_duration_since(a).as_secs_f64() * 1000.0),
     }
 }
 
@@ -348,6 +436,60 @@ mod tests {
         // Out-of-order samples are ignored.
         h.push(sample(t0, 90, 0));
         assert_eq!(h.latest().map(|s| s.counts), Some(400));
+    }
+
+    /// A sample whose exchange took `rtt_ms`, standing for `at_ms` (the midpoint, no latch
+    /// correction), of the trajectory `x`.
+    fn exchange(t0: Instant, at_ms: f64, rtt_ms: f64, x: impl Fn(f64) -> f64) -> PositionSample {
+        let at = t0 + Duration::from_secs_f64(at_ms / 1000.0);
+        let half = Duration::from_secs_f64(rtt_ms / 2000.0);
+        PositionSample::new(at - half, at + half, x(at_ms).round() as i64, Duration::ZERO)
+    }
+
+    #[test]
+    fn the_local_fit_follows_curvature_that_a_straight_line_cuts() {
+        // x = 4 t² counts (t in ms): a constant acceleration, samples every 15 ms.
+        let x = |t: f64| 4.0 * t * t;
+        let t0 = Instant::now();
+        let mut h = SampleHistory::new(64, Duration::from_millis(5), Duration::from_millis(40));
+        for k in 0..8 {
+            h.push(exchange(t0, 15.0 * f64::from(k), 5.5, x));
+        }
+        let q = 52.5; // between the samples at 45 and 60 ms
+        let got = h.position_at(t0 + Duration::from_secs_f64(q / 1000.0)).unwrap();
+        // A straight line between 45 and 60 ms is off by a h² / 8 = 225 counts.
+        let line = (x(45.0) + x(60.0)) / 2.0;
+        assert!((line - x(q)).abs() > 200.0);
+        assert!((got - x(q)).abs() < 1.0, "fit {got}, truth {}", x(q));
+    }
+
+    #[test]
+    fn a_slowed_exchange_barely_moves_the_fit() {
+        // 30 counts/ms with curvature; one exchange held up by the host: its answer was
+        // decoded 6 ms late, so its midpoint is 3 ms after the instant its value stands for.
+        let x = |t: f64| 30.0 * t + 0.2 * t * t;
+        let t0 = Instant::now();
+        let mut h = SampleHistory::new(64, Duration::from_millis(5), Duration::from_millis(40));
+        for k in 0..8u32 {
+            let at = 15.0 * f64::from(k);
+            let s = if k == 3 {
+                let held = exchange(t0, at, 5.5, x);
+                PositionSample::new(
+                    held.request_at,
+                    held.reply_at + Duration::from_millis(6),
+                    held.counts,
+                    Duration::ZERO,
+                )
+            } else {
+                exchange(t0, at, 5.5, x)
+            };
+            h.push(s);
+        }
+        for q in [40.0, 47.0, 52.0] {
+            let got = h.position_at(t0 + Duration::from_secs_f64(q / 1000.0)).unwrap();
+            // Unweighted, the slowed sample would put its value 3 ms late: ~100 counts off.
+            assert!((got - x(q)).abs() < 8.0, "at {q} ms: fit {got}, truth {}", x(q));
+        }
     }
 
     #[test]

@@ -22,7 +22,7 @@ use motus_epl::EthLink;
 use motus_epl_protocol::{EplFrame, Flags, MacAddr, Message, NmtState, PRes, PrRs, SafetyLease, Soc};
 use motus_safety::{RuleSet, JUGGLER_TOML};
 use motus_safety_epl::juggler;
-use motus_safety_epl::{EplLeaseTarget, InputMap, OnlineConfig, OnlineSupervisor};
+use motus_safety_epl::{EplLeaseTarget, InputMap, OnlineConfig, OnlineEvent, OnlineSupervisor};
 
 const EVENTS: usize = 10_000;
 
@@ -97,9 +97,18 @@ fn reaction_time_over_10000_unsafe_events_on_veth() {
     let sup_thread = {
         let stop = Arc::clone(&stop);
         std::thread::spawn(move || {
-            // The lease check never fires while the stimulus keeps the data fresh.
-            sup.run(&*sup_link, &stop, Duration::from_millis(5), |_, _| ControlFlow::Continue(())).unwrap();
-            sup
+            // The lease check fires only when the stimulus thread is held off the CPU between
+            // a safe cycle and its unsafe PRes for longer than the lease (a loaded host): that
+            // expiry stops the drives and its revoke answers the event. Counted, not hidden.
+            let mut expiries = 0usize;
+            sup.run(&*sup_link, &stop, Duration::from_millis(5), |_, e| {
+                if matches!(e, OnlineEvent::Unsafe { reaction: None, diagnosis, .. } if diagnosis.contains("lease expired")) {
+                    expiries += 1;
+                }
+                ControlFlow::Continue(())
+            })
+            .unwrap();
+            (sup, expiries)
         })
     };
 
@@ -128,7 +137,7 @@ fn reaction_time_over_10000_unsafe_events_on_veth() {
         }
     }
     stop.store(true, Ordering::Relaxed);
-    let sup = sup_thread.join().unwrap();
+    let (sup, expiries) = sup_thread.join().unwrap();
     drop(ns);
 
     let inside = sup.reaction().percentiles();
@@ -145,10 +154,15 @@ fn reaction_time_over_10000_unsafe_events_on_veth() {
         us(e2e.p99),
         us(e2e.max),
     );
+    eprintln!("lease expiries (stimulus thread held off the CPU longer than the lease): {expiries}");
     assert_eq!(missed, 0, "every unsafe PRes must be answered by a revoke");
-    // One stop per unsafe event, plus the first SoC (no data yet: unsafe at start-up).
-    assert_eq!(inside.count, EVENTS + 1, "one stop per unsafe event");
-    assert_eq!(sup.stops(), EVENTS as u64 + 1);
+    // One stop per unsafe event, plus the first SoC (no data yet: unsafe at start-up). An
+    // event that came after the lease had already expired (and stopped the drives) finds
+    // them stopped: its revoke is the expiry's, and it has no reaction time of its own.
+    assert_eq!(sup.stops(), EVENTS as u64 + 1, "one stop per unsafe event");
+    assert_eq!(inside.count + expiries, EVENTS + 1, "every stop is an unsafe event's or a lease expiry's");
+    // The figure stays a measurement of 10,000 events: expiries are the host's rare stalls.
+    assert!(expiries * 100 < EVENTS, "{expiries} lease expiries: the stimulus could not keep the data fresh");
     // Target (acceptance 4): p99 below 1 ms.
     assert!(inside.p99 < 1_000_000, "p99 {} ns", inside.p99);
 }

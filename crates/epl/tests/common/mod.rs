@@ -234,6 +234,14 @@ pub fn run_scenario(
     // under CPU contention skip cycles; they are counted and printed).
     let expected = seconds() / config.cycle.as_secs_f64();
     assert!(counted as f64 >= 0.25 * expected, "{label}: {counted} cycles monitored, expected ~{expected}");
+    // The monitor's misses are the segment's: a PRes the MN also saw missing or late (a few
+    // cycles of slack: the MN's figures were taken just before the monitor stopped counting).
+    let segment_misses = mn_stats.total_missed() + mn_stats.pres_late;
+    assert!(
+        misses.len() as u64 <= segment_misses + 5,
+        "{label}: the monitor saw {} node misses, the MN {segment_misses}: the monitor lost frames of its own",
+        misses.len()
+    );
     // Missed cycles (any node stale or invalid) below the limit; each miss is printed above.
     assert!(
         (missed_cycles as f64) < max_missed_fraction * counted as f64,
