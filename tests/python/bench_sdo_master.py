@@ -6,7 +6,9 @@ Two roles, both on a Motus socketcand hub on 127.0.0.1:
 * ``--role master`` (default): python-canopen's master. ``net.add_node(RemoteNode(N, eds))``
   and expedited uploads of 0x6041:00 (``node.sdo.upload``) in a loop for ``--seconds``;
   prints one JSON line ``{"role": "master", "uploads": .., "errors": .., "seconds": ..,
-  "rate_per_s": ..}`` and exits 0 when at least one upload worked.
+  "rate_per_s": ..}`` and exits 0 when at least one upload worked. With ``--nodes 20,21,..``
+  it uploads from every one of those nodes at once, one thread per node (the same workload
+  as Motus's concurrent transfers).
 * ``--role localnode``: python-canopen's LocalNode ``net.create_node(N, eds)`` serving SDO
   requests of Motus's master for ``--seconds``; prints ``{"role": "localnode", ...}``.
 
@@ -83,6 +85,57 @@ def run_master(args):
     return 0 if uploads > 0 else 1
 
 
+def run_master_many(args, nodes):
+    """One thread per node, each uploading 0x6041:00 in a loop: python-canopen's master
+    with concurrent transfers to several nodes (one SDO client per node)."""
+    net = connect(args.port, args.tcp_tune)
+    remotes = []
+    for n in nodes:
+        node = canopen.RemoteNode(n, args.eds)
+        net.add_node(node)
+        node.sdo.RESPONSE_TIMEOUT = 0.5
+        node.sdo.upload(0x6041, 0)
+        remotes.append(node)
+    counts = [[0, 0] for _ in remotes]
+    start = time.perf_counter()
+    deadline = start + args.seconds
+
+    def loop(i, node):
+        while time.perf_counter() < deadline:
+            try:
+                if len(node.sdo.upload(0x6041, 0)) == 2:
+                    counts[i][0] += 1
+                else:
+                    counts[i][1] += 1
+            except canopen.SdoError:
+                counts[i][1] += 1
+
+    threads = [threading.Thread(target=loop, args=(i, node)) for i, node in enumerate(remotes)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    elapsed = time.perf_counter() - start
+    net.disconnect()
+    uploads = sum(c[0] for c in counts)
+    print(
+        json.dumps(
+            {
+                "role": "master",
+                "nodes": nodes,
+                "uploads": uploads,
+                "errors": sum(c[1] for c in counts),
+                "seconds": round(elapsed, 4),
+                "rate_per_s": round(uploads / elapsed, 1),
+                "tcp_tune": args.tcp_tune,
+                "canopen": canopen.__version__,
+            }
+        ),
+        flush=True,
+    )
+    return 0 if uploads > 0 else 1
+
+
 def run_localnode(args):
     net = connect(args.port, args.tcp_tune)
     node = net.create_node(args.node, args.eds)
@@ -107,11 +160,14 @@ def main():
     ap.add_argument("--role", choices=["master", "localnode"], default="master")
     ap.add_argument("--port", type=int, required=True)
     ap.add_argument("--node", type=int, default=2)
+    ap.add_argument("--nodes", default="", help="comma-separated nodes: concurrent uploads, one thread each")
     ap.add_argument("--eds", required=True)
     ap.add_argument("--seconds", type=float, default=3.0)
     ap.add_argument("--no-tcp-tune", dest="tcp_tune", action="store_false")
     args = ap.parse_args()
     hard_timer(args.seconds + 10.0)
+    if args.role == "master" and args.nodes:
+        return run_master_many(args, [int(n) for n in args.nodes.split(",")])
     if args.role == "master":
         return run_master(args)
     return run_localnode(args)

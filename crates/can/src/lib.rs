@@ -69,7 +69,14 @@ pub struct Received {
 pub trait CanBus: Send + Sync {
     /// Queues one frame for transmission.
     fn send(&self, frame: &CanFrame) -> Result<(), CanError>;
-    /// Waits up to `timeout` for the next frame; `Ok(None)` on time-out.
+    /// Queues several frames for transmission, in order. Transports that can hand them to
+    /// the medium in one operation override it (socketcand: one TCP write instead of one
+    /// per frame, so the peers wake once per batch); the default sends them one by one.
+    fn send_batch(&self, frames: &[CanFrame]) -> Result<(), CanError> {
+        frames.iter().try_for_each(|f| self.send(f))
+    }
+    /// Waits up to `timeout` for the next frame; `Ok(None)` on time-out. A zero `timeout`
+    /// only returns a frame already received (a poll).
     fn recv(&self, timeout: Duration) -> Result<Option<Received>, CanError>;
     /// A short description for logs and errors (e.g. `socketcand://127.0.0.1:29536/can0`).
     fn describe(&self) -> String;
@@ -78,6 +85,9 @@ pub trait CanBus: Send + Sync {
 impl<T: CanBus + ?Sized> CanBus for std::sync::Arc<T> {
     fn send(&self, frame: &CanFrame) -> Result<(), CanError> {
         (**self).send(frame)
+    }
+    fn send_batch(&self, frames: &[CanFrame]) -> Result<(), CanError> {
+        (**self).send_batch(frames)
     }
     fn recv(&self, timeout: Duration) -> Result<Option<Received>, CanError> {
         (**self).recv(timeout)
@@ -90,6 +100,9 @@ impl<T: CanBus + ?Sized> CanBus for std::sync::Arc<T> {
 impl<T: CanBus + ?Sized> CanBus for Box<T> {
     fn send(&self, frame: &CanFrame) -> Result<(), CanError> {
         (**self).send(frame)
+    }
+    fn send_batch(&self, frames: &[CanFrame]) -> Result<(), CanError> {
+        (**self).send_batch(frames)
     }
     fn recv(&self, timeout: Duration) -> Result<Option<Received>, CanError> {
         (**self).recv(timeout)

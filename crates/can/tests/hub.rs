@@ -23,6 +23,28 @@ fn recv_all(bus: &dyn CanBus, n: usize) -> Vec<CanFrame> {
 }
 
 #[test]
+fn a_batch_is_one_write_and_reaches_the_others_whole_and_in_order() {
+    let hub = hub(None);
+    let a = SocketcandBus::connect(hub.local_addr(), "can0").unwrap();
+    let b = SocketcandBus::connect(hub.local_addr(), "can0").unwrap();
+    let c = SocketcandBus::connect(hub.local_addr(), "can0").unwrap();
+    std::thread::sleep(SETTLE + Duration::from_millis(50));
+    let batch: Vec<CanFrame> =
+        (0..300u16).map(|i| CanFrame::new(0x600 + u32::from(i % 127), &i.to_le_bytes()).unwrap()).collect();
+    a.send_batch(&batch).unwrap();
+    // A single frame after the batch stays behind it.
+    let last = CanFrame::new(0x080, &[]).unwrap();
+    a.send(&last).unwrap();
+    for bus in [&b as &dyn CanBus, &c] {
+        let got = recv_all(bus, 301);
+        assert_eq!(got[..300], batch[..], "on {}", bus.describe());
+        assert_eq!(got[300], last);
+    }
+    assert!(a.recv(Duration::from_millis(100)).unwrap().is_none(), "no echo to the sender");
+    assert_eq!(hub.stats().frames, 301);
+}
+
+#[test]
 fn every_frame_reaches_every_other_client_in_order() {
     let hub = hub(None);
     let a = SocketcandBus::connect(hub.local_addr(), "can0").unwrap();

@@ -32,16 +32,27 @@ pub fn run(
     Ok(drives)
 }
 
+/// Most frames handled before the simulator answers (bounds an answer's delay under a flood).
+const MAX_FRAMES_PER_BATCH: usize = 256;
+
 /// Serves shared drives on `bus` until `stop` is set (the caller may lock them meanwhile).
 pub fn run_shared(bus: Arc<dyn CanBus>, drives: SharedDrives, stop: Arc<AtomicBool>) -> Result<(), CanError> {
     let mut out = Vec::new();
     while !stop.load(Ordering::Relaxed) {
-        let received = bus.recv(Duration::from_millis(1))?;
+        let mut received = bus.recv(Duration::from_millis(1))?;
         {
             let mut guard = lock(&drives);
-            if let Some(r) = &received {
+            // Every frame already received is handled before answering, so the answers
+            // leave in one batch (one write on socketcand) and no answer waits for a frame
+            // still in the buffer.
+            let mut handled = 0;
+            while let Some(r) = received.take() {
                 for d in guard.iter_mut() {
                     out.extend(d.handle(&r.frame, r.at));
+                }
+                handled += 1;
+                if handled < MAX_FRAMES_PER_BATCH {
+                    received = bus.recv(Duration::ZERO)?;
                 }
             }
             let now = Instant::now();
@@ -49,9 +60,12 @@ pub fn run_shared(bus: Arc<dyn CanBus>, drives: SharedDrives, stop: Arc<AtomicBo
                 out.extend(d.poll(now));
             }
         }
-        for f in out.drain(..) {
-            tracing::trace!(frame = %f, "sim sends");
-            bus.send(&f)?;
+        if !out.is_empty() {
+            for f in &out {
+                tracing::trace!(frame = %f, "sim sends");
+            }
+            bus.send_batch(&out)?;
+            out.clear();
         }
     }
     Ok(())

@@ -124,7 +124,10 @@ fn unpacked_mode_sends_one_command_per_frame() {
     // (2 query frames a cycle).
     let per_cycle = |i: usize| stats.slaves[i].exchanges as f64 / stats.cycles as f64;
     assert!((per_cycle(0) - 3.0).abs() < 0.2 && (per_cycle(1) - 2.0).abs() < 0.2, "{stats:?}");
-    assert_eq!(stats.missed_answers, 0, "{stats}");
+    // An answer later than the time-out happens when the host holds a thread off the CPU
+    // (counted, the next cycle recovers); more than one answer and 3 % of cycles means the line
+    // is broken.
+    assert!(stats.missed_answers <= 1 + stats.cycles * 3 / 100, "{stats}");
 }
 
 #[test]

@@ -57,6 +57,14 @@ impl<B: CanBus> CanBus for CandumpLog<B> {
         Ok(())
     }
 
+    fn send_batch(&self, frames: &[CanFrame]) -> Result<(), CanError> {
+        self.inner.send_batch(frames)?;
+        for f in frames {
+            self.log(f);
+        }
+        Ok(())
+    }
+
     fn recv(&self, timeout: Duration) -> Result<Option<Received>, CanError> {
         let r = self.inner.recv(timeout)?;
         if let Some(r) = &r {

@@ -146,6 +146,14 @@ impl<B: CanBus> FaultyBus<B> {
 }
 
 impl<B: CanBus> CanBus for FaultyBus<B> {
+    fn send_batch(&self, frames: &[CanFrame]) -> Result<(), CanError> {
+        if !self.config.on_send {
+            return self.inner.send_batch(frames);
+        }
+        // Each frame meets its own fate (drop, corrupt, delay).
+        frames.iter().try_for_each(|f| self.send(f))
+    }
+
     fn send(&self, frame: &CanFrame) -> Result<(), CanError> {
         if !self.config.on_send {
             return self.inner.send(frame);

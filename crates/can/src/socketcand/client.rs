@@ -111,6 +111,16 @@ impl CanBus for SocketcandBus {
             .map_err(|e| CanError::Closed(format!("{}: {e}", self.describe())))
     }
 
+    fn send_batch(&self, frames: &[CanFrame]) -> Result<(), CanError> {
+        let mut text = String::with_capacity(48 * frames.len());
+        for f in frames {
+            Message::Send(f.clone()).format_into(&mut text);
+        }
+        lock(&self.writer)
+            .write_all(text.as_bytes())
+            .map_err(|e| CanError::Closed(format!("{}: {e}", self.describe())))
+    }
+
     fn recv(&self, timeout: Duration) -> Result<Option<Received>, CanError> {
         let mut r = lock(&self.reading);
         let deadline = Instant::now() + timeout;

@@ -104,6 +104,33 @@ impl Shared {
         }
     }
 
+    /// Frames sent by client `source` in one read enter the bus together: every other
+    /// client gets them as one message (its writer wakes once for the batch).
+    pub fn submit_many(&self, source: u64, frames: Vec<CanFrame>) {
+        let (remote, data): (Vec<CanFrame>, Vec<CanFrame>) =
+            frames.into_iter().partition(CanFrame::is_remote);
+        if !remote.is_empty() {
+            self.remote.fetch_add(remote.len() as u64, Ordering::Relaxed);
+            tracing::debug!("socketcand hub: dropping {} remote frame(s)", remote.len());
+        }
+        if self.dispatch.is_some() || data.len() == 1 {
+            // The bus model times each frame; a single frame needs no batch.
+            for f in data {
+                self.submit(source, f);
+            }
+            return;
+        }
+        if data.is_empty() {
+            return;
+        }
+        let mut clients = lock(&self.clients);
+        self.frames.fetch_add(data.len() as u64, Ordering::Relaxed);
+        let bits: u64 = data.iter().map(|f| u64::from(wire_time::worst_case_bits(f))).sum();
+        self.bits.fetch_add(bits, Ordering::Relaxed);
+        let batch: Arc<[CanFrame]> = data.into();
+        clients.retain(|c| c.counters.id == source || c.offer(Outgoing::Frames(Arc::clone(&batch))));
+    }
+
     /// Queues `frame` for every client but `source`, dropping clients that overflow.
     fn fan_out(&self, source: u64, frame: CanFrame) {
         let mut clients = lock(&self.clients);

@@ -10,14 +10,15 @@ use super::hub::Shared;
 use crate::CanFrame;
 use std::io::{Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpStream};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 /// Time between the last handshake reply and the first frame written to a client.
 pub const SETTLE: Duration = Duration::from_millis(100);
-/// Messages queued for one client before it is considered dead and disconnected.
+/// Frames (and echo replies) queued for one client before it is considered dead and
+/// disconnected.
 pub const QUEUE_CAPACITY: usize = 65_536;
 /// Most messages written to a socket in one batch.
 const BATCH: usize = 256;
@@ -26,8 +27,20 @@ const BATCH: usize = 256;
 pub(crate) enum Outgoing {
     /// A frame delivered by the bus.
     Frame(CanFrame),
+    /// Frames another client sent in one write, delivered together.
+    Frames(Arc<[CanFrame]>),
     /// The answer to `< echo >`.
     Echo,
+}
+
+impl Outgoing {
+    /// How much of a client's [`QUEUE_CAPACITY`] this message takes.
+    fn weight(&self) -> usize {
+        match self {
+            Outgoing::Frames(batch) => batch.len().max(1),
+            Outgoing::Frame(_) | Outgoing::Echo => 1,
+        }
+    }
 }
 
 /// Counters of one client, kept after it leaves.
@@ -38,6 +51,8 @@ pub(crate) struct Counters {
     pub from_client: AtomicU64,
     pub to_client: AtomicU64,
     pub connected: AtomicBool,
+    /// Frames and echo replies queued for the client's writer.
+    pub queued: AtomicUsize,
 }
 
 /// What the hub keeps of a joined client.
@@ -50,7 +65,10 @@ pub(crate) struct ClientHandle {
 impl ClientHandle {
     /// Queues `msg`; `false` when the client must be dropped (queue full or writer gone).
     pub fn offer(&self, msg: Outgoing) -> bool {
-        match self.tx.try_send(msg) {
+        let weight = msg.weight();
+        let queued = self.counters.queued.fetch_add(weight, Ordering::Relaxed) + weight;
+        let sent = if queued > QUEUE_CAPACITY { Err(TrySendError::Full(msg)) } else { self.tx.try_send(msg) };
+        match sent {
             Ok(()) => true,
             Err(TrySendError::Full(_)) => {
                 tracing::warn!(client = self.counters.id, peer = %self.counters.peer,
@@ -71,6 +89,7 @@ pub(crate) fn serve(shared: Arc<Shared>, stream: TcpStream, id: u64, peer: Socke
         from_client: AtomicU64::new(0),
         to_client: AtomicU64::new(0),
         connected: AtomicBool::new(true),
+        queued: AtomicUsize::new(0),
     });
     shared.register_counters(counters.clone());
     if let Err(e) = run(&shared, &stream, &counters) {
@@ -96,7 +115,12 @@ fn run(shared: &Arc<Shared>, stream: &TcpStream, counters: &Arc<Counters>) -> st
             return Ok(());
         }
         parser.push(buf.get(..n).unwrap_or(&[]));
+        // The frames of one read enter the bus together (see `Shared::submit_many`).
+        let mut frames = Vec::new();
         for msg in parser.by_ref() {
+            if !matches!(msg, Message::Send(_)) && !frames.is_empty() {
+                shared.submit_many(counters.id, std::mem::take(&mut frames));
+            }
             match (msg, &joined) {
                 (Message::Open(channel), None) => {
                     if channel != shared.channel {
@@ -118,17 +142,23 @@ fn run(shared: &Arc<Shared>, stream: &TcpStream, counters: &Arc<Counters>) -> st
                     let _ = go.send(Instant::now());
                 }
                 (Message::Echo, Some(tx)) => {
-                    let _ = tx.try_send(Outgoing::Echo);
+                    counters.queued.fetch_add(1, Ordering::Relaxed);
+                    if tx.try_send(Outgoing::Echo).is_err() {
+                        counters.queued.fetch_sub(1, Ordering::Relaxed);
+                    }
                 }
                 (Message::Echo, None) => direct.write_all(Message::Echo.format().as_bytes())?,
                 (Message::Send(frame), _) if opened => {
                     counters.from_client.fetch_add(1, Ordering::Relaxed);
-                    shared.submit(counters.id, frame);
+                    frames.push(frame);
                 }
                 (other, _) => {
                     tracing::debug!(client = counters.id, "socketcand hub: ignoring {other:?}");
                 }
             }
+        }
+        if !frames.is_empty() {
+            shared.submit_many(counters.id, frames);
         }
     }
 }
@@ -173,10 +203,17 @@ fn write_loop(mut out: TcpStream, rx: Receiver<Outgoing>, ready_at: Instant, cou
         let mut count = 0;
         let timestamp = wall_clock();
         while let Some(msg) = next.take() {
+            counters.queued.fetch_sub(msg.weight(), Ordering::Relaxed);
             match msg {
                 Outgoing::Frame(frame) => {
                     frames += 1;
                     Message::Frame { frame, timestamp }.format_into(&mut text);
+                }
+                Outgoing::Frames(batch) => {
+                    for frame in batch.iter() {
+                        frames += 1;
+                        Message::Frame { frame: frame.clone(), timestamp }.format_into(&mut text);
+                    }
                 }
                 Outgoing::Echo => Message::Echo.format_into(&mut text),
             }

@@ -19,7 +19,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use motus_can::{CanBus, CanFrame, Received};
+use motus_can::{CanBus, CanError, CanFrame, Received};
 use motus_canopen_protocol::message::LSS_SLAVE_TO_MASTER;
 use motus_canopen_protocol::{LssResponse, NmtCommand, NmtState, SdoResponse};
 
@@ -147,6 +147,13 @@ impl Inner {
     pub(crate) fn send(&self, frame: &CanFrame, context: impl FnOnce() -> String) -> Result<(), MasterError> {
         self.bus.send(frame).map_err(|e| MasterError::transport(context(), e))?;
         self.stats.sent.fetch_add(1, Ordering::Relaxed);
+        Ok(())
+    }
+
+    /// Sends `frames` in one batch ([`CanBus::send_batch`]).
+    pub(crate) fn send_batch(&self, frames: &[CanFrame]) -> Result<(), CanError> {
+        self.bus.send_batch(frames)?;
+        self.stats.sent.fetch_add(frames.len() as u64, Ordering::Relaxed);
         Ok(())
     }
 

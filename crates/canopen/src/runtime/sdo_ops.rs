@@ -125,24 +125,29 @@ impl Inner {
         let (tx, rx) = channel();
         let mut active: HashMap<u8, (usize, SdoTransfer)> = HashMap::new();
         let mut waiter_guards = Vec::new();
+        let mut first_frames = Vec::with_capacity(guards.len());
         for (i, _) in &guards {
             let Some(&(node, index, sub)) = requests.get(*i) else { continue };
             lock(&self.sdo_waiters).insert(node, tx.clone());
             waiter_guards.push(WaiterGuard { inner: self, node });
-            let started = SdoTransfer::upload(node, index, sub, Instant::now(), timeout)
-                .map_err(MasterError::from)
-                .and_then(|(t, first)| {
-                    self.send(&first, || format!("SDO upload from node {node}"))?;
-                    Ok(t)
-                });
-            match started {
-                Ok(t) => {
+            match SdoTransfer::upload(node, index, sub, Instant::now(), timeout) {
+                Ok((t, first)) => {
                     active.insert(node, (*i, t));
+                    first_frames.push(first);
                 }
                 Err(e) => {
                     if let Some(slot) = results.get_mut(*i) {
-                        *slot = Some(Err(e));
+                        *slot = Some(Err(e.into()));
                     }
+                }
+            }
+        }
+        // Every request in one batch (one write on socketcand): the nodes answer together.
+        if let Err(e) = self.send_batch(&first_frames) {
+            for (node, (i, _)) in active.drain() {
+                if let Some(slot) = results.get_mut(i) {
+                    let context = format!("SDO upload from node {node}");
+                    *slot = Some(Err(MasterError::transport(context, duplicate(&e))));
                 }
             }
         }
@@ -410,5 +415,18 @@ impl Master {
                     .and_then(|raw| v.data_type.decode(&raw).map_err(|e| e.to_string())),
             })
             .collect())
+    }
+}
+
+/// The same transport error again (one per transfer of a failed batch; `io::Error` is not
+/// `Clone`, so its kind and text are kept).
+fn duplicate(e: &motus_can::CanError) -> motus_can::CanError {
+    use motus_can::CanError as E;
+    match e {
+        E::Closed(s) => E::Closed(s.clone()),
+        E::Io(io) => E::Io(std::io::Error::new(io.kind(), io.to_string())),
+        E::Protocol(s) => E::Protocol(s.clone()),
+        E::Address(s) => E::Address(s.clone()),
+        E::Unavailable { what, reason } => E::Unavailable { what: what.clone(), reason: reason.clone() },
     }
 }
