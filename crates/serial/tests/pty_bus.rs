@@ -89,3 +89,19 @@ fn non_idempotent_requests_are_not_repeated() {
     assert!(matches!(err, BusError::Timeout { attempts: 1, .. }), "{err}");
     stop.store(true, Ordering::Relaxed);
 }
+
+#[test]
+fn a_zero_time_out_read_polls_what_has_arrived() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("line");
+    let mut pty = PtyLink::create(Some(&path), LineSettings::n81(115_200)).unwrap();
+    let mut port = SerialLink::open(path.to_str().unwrap(), 115_200).unwrap();
+    let mut buf = [0u8; 16];
+    let t0 = Instant::now();
+    assert_eq!(port.read(&mut buf, Duration::ZERO).unwrap(), 0, "nothing sent yet");
+    assert!(t0.elapsed() < Duration::from_millis(20), "a poll does not wait");
+    pty.write_all(&[1, 2, 3]).unwrap();
+    std::thread::sleep(Duration::from_millis(20));
+    assert_eq!(port.read(&mut buf, Duration::ZERO).unwrap(), 3);
+    assert_eq!(&buf[..3], &[1, 2, 3]);
+}

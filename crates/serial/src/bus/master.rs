@@ -22,6 +22,10 @@ pub struct BusConfig {
     pub retries: u32,
 }
 
+/// Reads without waiting after an exchange's deadline, to collect an answer that arrived in
+/// time while this thread was not running (bounded, so a babbling line still times out).
+const MAX_LATE_READS: u32 = 8;
+
 impl Default for BusConfig {
     fn default() -> Self {
         BusConfig { margin: Duration::from_millis(20), retries: 2 }
@@ -175,19 +179,30 @@ impl BusMaster {
             inner.buf.clear();
             let mut deadline = Instant::now() + timeout;
             let mut chunk = [0u8; 256];
+            let mut late_reads = 0;
             'attempt: loop {
-                let now = Instant::now();
-                if now >= deadline {
-                    dev.timeouts += 1;
-                    break;
+                let wait = deadline.saturating_duration_since(Instant::now());
+                if wait.is_zero() {
+                    // Past the deadline, what has already arrived is still read (without
+                    // waiting) before this is called a time-out: when the host held this
+                    // thread off the CPU, the answer may be in the buffer, on time.
+                    late_reads += 1;
+                    if late_reads > MAX_LATE_READS {
+                        dev.timeouts += 1;
+                        break;
+                    }
                 }
-                let n = match inner.link.read(&mut chunk, deadline - now) {
+                let n = match inner.link.read(&mut chunk, wait) {
                     Ok(n) => n,
                     Err(e) => {
                         io_error = Some(e);
                         break;
                     }
                 };
+                if n == 0 && wait.is_zero() {
+                    dev.timeouts += 1;
+                    break;
+                }
                 rx += n as u64;
                 inner.buf.extend_from_slice(chunk.get(..n).unwrap_or(&[]));
                 let mut start = 0;
@@ -285,4 +300,75 @@ fn add(to: &mut DeviceStats, d: &DeviceStats) {
     to.corrupt_frames += d.corrupt_frames;
     to.unexpected_frames += d.unexpected_frames;
     to.failures += d.failures;
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+    use crate::link::LineSettings;
+    use std::io;
+
+    /// A link whose answer arrives in time, but whose reader is "descheduled": the first
+    /// waiting read returns nothing only after the whole time-out (and then some) passed.
+    struct LateWakeLink {
+        answer: Vec<u8>,
+        waited: bool,
+        answered: bool,
+    }
+
+    impl Link for LateWakeLink {
+        fn write_all(&mut self, _: &[u8]) -> io::Result<()> {
+            Ok(())
+        }
+        fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+            if !self.waited && !timeout.is_zero() {
+                self.waited = true;
+                std::thread::sleep(timeout + Duration::from_millis(5));
+                return Ok(0);
+            }
+            if self.waited && !self.answered {
+                self.answered = true;
+                buf[..self.answer.len()].copy_from_slice(&self.answer);
+                return Ok(self.answer.len());
+            }
+            Ok(0)
+        }
+        fn discard_input(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+        fn line(&self) -> LineSettings {
+            LineSettings::n81(115_200)
+        }
+        fn describe(&self) -> String {
+            "late-wake".into()
+        }
+    }
+
+    fn scan(buf: &[u8]) -> FrameScan<u8> {
+        match buf {
+            [a, b, ..] if *b == a.wrapping_add(1) => FrameScan::Frame { frame: *a, len: 2 },
+            [_, _, ..] => FrameScan::Skip { corrupt: false },
+            _ => FrameScan::Incomplete,
+        }
+    }
+
+    #[test]
+    fn an_answer_already_received_when_the_reader_wakes_late_is_not_a_time_out() {
+        let link = LateWakeLink { answer: vec![7, 8], waited: false, answered: false };
+        let bus = BusMaster::new(Box::new(link), BusConfig { margin: Duration::from_millis(2), retries: 0 });
+        let req = Request { device: 7, bytes: &[7], reply_len: 2, idempotent: true };
+        assert_eq!(bus.transact(&req, &scan, |f| *f == 7), Ok(7));
+        let d = bus.device_stats(7);
+        assert_eq!((d.ok, d.timeouts), (1, 0), "{d:?}");
+    }
+
+    #[test]
+    fn nothing_received_by_the_deadline_is_a_time_out() {
+        let link = LateWakeLink { answer: vec![], waited: true, answered: true };
+        let bus = BusMaster::new(Box::new(link), BusConfig { margin: Duration::from_millis(2), retries: 1 });
+        let req = Request { device: 3, bytes: &[3], reply_len: 2, idempotent: true };
+        assert!(matches!(bus.transact(&req, &scan, |_| true), Err(BusError::Timeout { attempts: 2, .. })));
+        assert_eq!(bus.device_stats(3).timeouts, 2);
+    }
 }

@@ -64,11 +64,19 @@ impl Link for SerialLink {
     }
 
     fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        let port = self.port()?;
         if timeout.is_zero() {
-            return Ok(0);
+            // A poll: only what has already arrived (never "wait forever").
+            let ready = match port.bytes_to_read() {
+                Ok(n) => n,
+                Err(e) => return self.failed(io::Error::other(e)),
+            };
+            if ready == 0 {
+                return Ok(0);
+            }
         }
         let port = self.port()?;
-        port.set_timeout(timeout).map_err(io::Error::other)?;
+        port.set_timeout(timeout.max(Duration::from_millis(1))).map_err(io::Error::other)?;
         match port.read(buf) {
             Ok(0) => self.failed(io::Error::new(io::ErrorKind::UnexpectedEof, "serial port closed")),
             Ok(n) => Ok(n),
