@@ -329,11 +329,18 @@ impl SdoTransfer {
         }
     }
 
+    /// An initiate response naming another object: the answer to another SDO client on the
+    /// same channel (a second master, a diagnostic tool). The server answers requests in
+    /// order, so ours follows; it is ignored, and no abort is sent, which would break the
+    /// other client's transfer. The time-out still bounds the wait.
     fn wrong_object(&mut self, index: u16, sub: u8) -> SdoStep {
-        self.protocol(
-            SdoAbortCode::InvalidCommandSpecifier,
-            format!("response names object 0x{index:04X}:{sub:02X}"),
-        )
+        tracing::debug!(
+            node = self.node,
+            "SDO response for 0x{index:04X}:{sub:02X} while waiting for 0x{:04X}:{:02X}: another client on this channel; ignored",
+            self.index,
+            self.sub
+        );
+        SdoStep::Wait
     }
 
     fn next_segment(&mut self, toggle: bool, now: Instant) -> SdoStep {
@@ -382,6 +389,22 @@ mod tests {
         // 7-byte frame: not an SDO response (DLC must be 8).
         assert_eq!(t.on_frame(&f("585#4B416000370200"), t0), SdoStep::Wait);
         assert!(!t.is_finished());
+    }
+
+    #[test]
+    fn another_clients_answer_on_the_channel_is_ignored_without_abort() {
+        let t0 = Instant::now();
+        let (mut t, _) = SdoTransfer::upload(5, 0x606C, 0, t0, Duration::from_millis(500)).unwrap();
+        // A second master's upload of 0x6064:00 was answered first (43 = 4 bytes, e, s).
+        assert_eq!(t.on_frame(&f("585#4364600010270000"), t0), SdoStep::Wait);
+        assert!(!t.is_finished());
+        // Then ours: 0x606C:00 = -100 (0xFFFFFF9C).
+        assert_eq!(t.on_frame(&f("585#436C60009CFFFFFF"), t0), SdoStep::Done(vec![0x9C, 0xFF, 0xFF, 0xFF]));
+        // A download waits the same way past an initiate response for another object.
+        let (mut d, _) =
+            SdoTransfer::download(5, 0x6040, 0, &[0x0F, 0x00], t0, Duration::from_millis(500)).unwrap();
+        assert_eq!(d.on_frame(&f("585#60FF600000000000"), t0), SdoStep::Wait);
+        assert_eq!(d.on_frame(&f("585#6040600000000000"), t0), SdoStep::Done(Vec::new()));
     }
 
     #[test]

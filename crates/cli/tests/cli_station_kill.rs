@@ -59,7 +59,15 @@ fn sdo_read_sub(bus: &str, node: &str, index: &str, sub: &str, ty: &str) -> Opti
         .unwrap();
     // "0x6041:00 = 1616 (0x650) [50 06]": the decimal value after " = ".
     let out = String::from_utf8_lossy(&o.stdout);
-    out.split_once(" = ")?.1.split_whitespace().next()?.parse().ok()
+    let value = out.split_once(" = ").and_then(|(_, v)| v.split_whitespace().next()?.parse().ok());
+    if value.is_none() {
+        eprintln!(
+            "sdo read {node} {index}:{sub} failed: {}\nstdout: {out}\nstderr: {}",
+            o.status,
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    value
 }
 
 #[test]
