@@ -57,31 +57,35 @@ def run_master(args):
         now = time.perf_counter()
         if now >= deadline:
             break
-        try:
-            data = node.sdo.upload(0x6041, 0)
-            if len(data) != 2:
-                errors += 1
-            else:
-                uploads += 1
-        except canopen.SdoError:
+        if upload_once(node):
+            uploads += 1
+        else:
             errors += 1
     elapsed = time.perf_counter() - start
     net.disconnect()
-    print(
-        json.dumps(
-            {
-                "role": "master",
-                "node": args.node,
-                "uploads": uploads,
-                "errors": errors,
-                "seconds": round(elapsed, 4),
-                "rate_per_s": round(uploads / elapsed, 1),
-                "tcp_tune": args.tcp_tune,
-                "canopen": canopen.__version__,
-            }
-        ),
-        flush=True,
+    return report_master(args, {"node": args.node}, uploads, errors, elapsed)
+
+
+def upload_once(node):
+    """One expedited upload of 0x6041:00; True when it returned its 2 bytes."""
+    try:
+        return len(node.sdo.upload(0x6041, 0)) == 2
+    except canopen.SdoError:
+        return False
+
+
+def report_master(args, who, uploads, errors, elapsed):
+    """Prints the master's JSON line; exit status 0 when at least one upload worked."""
+    line = {"role": "master", **who, "uploads": uploads, "errors": errors}
+    line.update(
+        {
+            "seconds": round(elapsed, 4),
+            "rate_per_s": round(uploads / elapsed, 1),
+            "tcp_tune": args.tcp_tune,
+            "canopen": canopen.__version__,
+        }
     )
+    print(json.dumps(line), flush=True)
     return 0 if uploads > 0 else 1
 
 
@@ -102,13 +106,7 @@ def run_master_many(args, nodes):
 
     def loop(i, node):
         while time.perf_counter() < deadline:
-            try:
-                if len(node.sdo.upload(0x6041, 0)) == 2:
-                    counts[i][0] += 1
-                else:
-                    counts[i][1] += 1
-            except canopen.SdoError:
-                counts[i][1] += 1
+            counts[i][0 if upload_once(node) else 1] += 1
 
     threads = [threading.Thread(target=loop, args=(i, node)) for i, node in enumerate(remotes)]
     for t in threads:
@@ -118,22 +116,7 @@ def run_master_many(args, nodes):
     elapsed = time.perf_counter() - start
     net.disconnect()
     uploads = sum(c[0] for c in counts)
-    print(
-        json.dumps(
-            {
-                "role": "master",
-                "nodes": nodes,
-                "uploads": uploads,
-                "errors": sum(c[1] for c in counts),
-                "seconds": round(elapsed, 4),
-                "rate_per_s": round(uploads / elapsed, 1),
-                "tcp_tune": args.tcp_tune,
-                "canopen": canopen.__version__,
-            }
-        ),
-        flush=True,
-    )
-    return 0 if uploads > 0 else 1
+    return report_master(args, {"nodes": nodes}, uploads, sum(c[1] for c in counts), elapsed)
 
 
 def run_localnode(args):
