@@ -51,6 +51,7 @@ def run_master(args):
     node.sdo.upload(0x6041, 0)
     uploads = 0
     errors = 0
+    cpu0 = time.process_time()
     start = time.perf_counter()
     deadline = start + args.seconds
     while True:
@@ -62,8 +63,9 @@ def run_master(args):
         else:
             errors += 1
     elapsed = time.perf_counter() - start
+    cpu = time.process_time() - cpu0
     net.disconnect()
-    return report_master(args, {"node": args.node}, uploads, errors, elapsed)
+    return report_master(args, {"node": args.node}, uploads, errors, elapsed, cpu)
 
 
 def upload_once(node):
@@ -74,13 +76,17 @@ def upload_once(node):
         return False
 
 
-def report_master(args, who, uploads, errors, elapsed):
-    """Prints the master's JSON line; exit status 0 when at least one upload worked."""
+def report_master(args, who, uploads, errors, elapsed, cpu):
+    """Prints the master's JSON line; exit status 0 when at least one upload worked.
+
+    ``cpu_s`` is the CPU time of the whole python process (every thread: python-canopen,
+    python-can's receive thread) during the timed loop, user and system."""
     line = {"role": "master", **who, "uploads": uploads, "errors": errors}
     line.update(
         {
             "seconds": round(elapsed, 4),
             "rate_per_s": round(uploads / elapsed, 1),
+            "cpu_s": round(cpu, 4),
             "tcp_tune": args.tcp_tune,
             "canopen": canopen.__version__,
         }
@@ -101,6 +107,7 @@ def run_master_many(args, nodes):
         node.sdo.upload(0x6041, 0)
         remotes.append(node)
     counts = [[0, 0] for _ in remotes]
+    cpu0 = time.process_time()
     start = time.perf_counter()
     deadline = start + args.seconds
 
@@ -114,9 +121,10 @@ def run_master_many(args, nodes):
     for t in threads:
         t.join()
     elapsed = time.perf_counter() - start
+    cpu = time.process_time() - cpu0
     net.disconnect()
     uploads = sum(c[0] for c in counts)
-    return report_master(args, {"nodes": nodes}, uploads, sum(c[1] for c in counts), elapsed)
+    return report_master(args, {"nodes": nodes}, uploads, sum(c[1] for c in counts), elapsed, cpu)
 
 
 def run_localnode(args):

@@ -160,6 +160,9 @@ impl SimDrive {
     /// Handles one received frame; returns the frames sent in reaction.
     pub fn handle(&mut self, frame: &CanFrame, now: Instant) -> Vec<CanFrame> {
         self.advance(now);
+        if self.is_other_nodes_sdo(frame) {
+            return self.take(now);
+        }
         if self.booted && !self.lss.muted(now) && !frame.is_extended() && !frame.is_remote() {
             self.dispatch(frame, now);
             if self.nmt.pdo_allowed() {
@@ -203,6 +206,16 @@ impl SimDrive {
             }
         }
         self.take(now)
+    }
+
+    /// Another node's SDO request or response. CiA 301 reserves 0x581..=0x5FF and
+    /// 0x601..=0x67F for the default SDO channels (no PDO, SYNC or EMCY may use them), so
+    /// such a frame concerns this drive in no way and costs it no dictionary look-up (on a
+    /// bus of many drives every drive sees every transfer).
+    fn is_other_nodes_sdo(&self, frame: &CanFrame) -> bool {
+        let id = frame.id();
+        let sdo = (0x581..=0x5FF).contains(&id) || (0x601..=0x67F).contains(&id);
+        sdo && !frame.is_extended() && self.node_id().map_or(true, |n| id != 0x600 + u32::from(n))
     }
 
     fn take(&mut self, now: Instant) -> Vec<CanFrame> {

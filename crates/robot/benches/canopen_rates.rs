@@ -5,13 +5,16 @@
 //! * (b) Motus's master against python-canopen's `LocalNode` (node 5, the simulator's EDS);
 //! * (c) python-canopen's master (`RemoteNode(2)`, `sdo.upload(0x6041, 0)` in a loop)
 //!   against Motus's simulated drive, run once by `tests/python/bench_sdo_master.py`;
-//! * (d), (e) Motus's master with concurrent transfers to eight simulated drives (eight
-//!   threads; one thread with `sdo_upload_many`), and (f) python-canopen's master with the
-//!   same workload (eight `RemoteNode`s, one thread each).
+//! * (d), (e) Motus's master with concurrent transfers to N simulated drives (N threads;
+//!   one thread with `sdo_upload_many`), and (f) python-canopen's master with the same
+//!   workload (N `RemoteNode`s, one thread each), for N = 8, 16 and 32 (`BENCH_SDO_NODES=4,8`
+//!   sets the list).
 //!
+//! Each master's CPU time per upload is printed as well: Motus's caller and receive thread
+//! (from `/proc/self/task/*/schedstat`), the whole python process (`time.process_time`).
 //! Criterion measures one upload of 0x6041:00 per iteration for (a) and (b). Besides,
 //! each pair runs a timed loop of the same length as the python master's, and the rates
-//! and the ratio (a)/(c) (target: at least 10) are printed as `RATE ...` lines.
+//! and the ratios (target: at least 10) are printed as `RATE ...` and `RATIO ...` lines.
 //! `BENCH_QUICK=1` shortens the timed loops from 3 s to 1.5 s.
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
 
@@ -235,6 +238,118 @@ fn hub_floor(c: &mut Criterion, seconds: f64) -> f64 {
     rate
 }
 
+/// CPU time (user + system) consumed so far by this process's threads whose name starts
+/// with `prefix`, and by the calling thread (from `/proc/self/task/*/schedstat`, ns).
+fn thread_cpu(prefix: &str) -> Duration {
+    let read_ns = |path: std::path::PathBuf| -> u64 {
+        std::fs::read_to_string(path)
+            .ok()
+            .and_then(|t| t.split_whitespace().next().and_then(|v| v.parse().ok()))
+            .unwrap_or(0)
+    };
+    let mut ns = read_ns(PathBuf::from("/proc/thread-self/schedstat"));
+    if let Ok(tasks) = std::fs::read_dir("/proc/self/task") {
+        for task in tasks.flatten() {
+            let comm = std::fs::read_to_string(task.path().join("comm")).unwrap_or_default();
+            if comm.starts_with(prefix) {
+                ns += read_ns(task.path().join("schedstat"));
+            }
+        }
+    }
+    Duration::from_nanos(ns)
+}
+
+/// (d) Motus's master with concurrent transfers to `n` simulated drives from `n` threads,
+/// (e) the same from one thread with `sdo_upload_many`, and (f) python-canopen's master
+/// with the same workload (`n` `RemoteNode`s, one thread each), on one hub. Prints the
+/// rates, each master's CPU time per transfer, and the ratios; returns max((d), (e)).
+fn concurrent(n: usize, seconds: f64) -> f64 {
+    let hub = start_hub();
+    let nodes: Vec<u8> = (20..20 + n.min(100) as u8).collect();
+    let _sims = Sim::start_many(&hub, &nodes);
+    let master = Arc::new(Master::new(connect(&hub)));
+    std::thread::sleep(SETTLE * 2);
+    for node in &nodes {
+        master.read_u16(*node, 0x6041, 0).expect("the simulated drives answer");
+    }
+    let start = Instant::now();
+    let threads: Vec<_> = nodes
+        .iter()
+        .map(|node| {
+            let (m, node) = (Arc::clone(&master), *node);
+            std::thread::spawn(move || timed_rate(&m, node, seconds))
+        })
+        .collect();
+    let (mut total, mut errors) = (0u64, 0u64);
+    for t in threads {
+        let (ok, e, _) = t.join().unwrap();
+        total += ok;
+        errors += e;
+    }
+    let d_rate = total as f64 / start.elapsed().as_secs_f64();
+    println!(
+        "RATE (d) Motus master, concurrent transfers to {n} simulated drives ({n} threads): {d_rate:.0} uploads/s \
+         ({total} in {seconds} s, {errors} errors)"
+    );
+    // (e): every request sent in one batch, then the answers collected as they come.
+    let requests: Vec<(u8, u16, u8)> = nodes.iter().map(|node| (*node, 0x6041, 0)).collect();
+    let (mut ok, mut errs) = (0u64, 0u64);
+    let cpu0 = thread_cpu("canopen-master");
+    let start = Instant::now();
+    let until = start + Duration::from_secs_f64(seconds);
+    while Instant::now() < until {
+        for r in master.sdo_upload_many(&requests) {
+            if r.is_ok() {
+                ok += 1;
+            } else {
+                errs += 1;
+            }
+        }
+    }
+    let e_rate = ok as f64 / start.elapsed().as_secs_f64();
+    let e_cpu = thread_cpu("canopen-master").saturating_sub(cpu0).as_secs_f64();
+    let e_cpu_us = e_cpu * 1e6 / ok.max(1) as f64;
+    println!(
+        "RATE (e) Motus master, one thread, sdo_upload_many over {n} simulated drives: {e_rate:.0} uploads/s \
+         ({ok} in {seconds} s, {errs} errors); master CPU {e_cpu_us:.1} us per upload \
+         (caller and receive thread)"
+    );
+    // (f): python-canopen's master on the same hub (Motus's master is idle meanwhile).
+    let eds = eds_file(nodes[0]);
+    let mut args = script_args("master", &hub, nodes[0], eds.path(), seconds);
+    args.push("--nodes".into());
+    args.push(nodes.iter().map(ToString::to_string).collect::<Vec<_>>().join(","));
+    let (exited, lines, stderr) = Python::spawn(&args).finish(Duration::from_secs_f64(seconds + 30.0));
+    let f_json = lines
+        .iter()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .find(|v| v["role"] == "master");
+    let best = d_rate.max(e_rate);
+    match f_json.as_ref().and_then(|v| Some((v["rate_per_s"].as_f64()?, v["uploads"].as_f64()?, v["cpu_s"].as_f64()?))) {
+        Some((f, uploads, cpu)) => {
+            let f_cpu_us = cpu * 1e6 / uploads.max(1.0);
+            println!(
+                "RATE (f) python-canopen master, concurrent transfers to {n} simulated drives ({n} threads): {f:.0} uploads/s; \
+                 master CPU {f_cpu_us:.1} us per upload (whole python process)"
+            );
+            println!(
+                "RATIO max((d),(e))/(f) Motus master / python-canopen master, both with concurrent transfers to {n} drives: \
+                 {:.1}x (target >= 10x: {})",
+                best / f,
+                if best >= 10.0 * f { "met" } else { "NOT met" }
+            );
+            println!(
+                "RATIO master CPU per upload, python-canopen (f) / Motus (e), {n} drives: {:.1}x",
+                f_cpu_us / e_cpu_us.max(f64::MIN_POSITIVE)
+            );
+        }
+        None => println!(
+            "RATE (f) python-canopen master, concurrent: FAILED (exit ok: {exited})\nstdout: {lines:?}\nstderr: {stderr}"
+        ),
+    }
+    best
+}
+
 fn main() {
     let mut c = Criterion::default().configure_from_args();
     let seconds = if std::env::var_os("BENCH_QUICK").is_some() { 1.5 } else { 3.0 };
@@ -248,96 +363,23 @@ fn main() {
         std::thread::sleep(SETTLE * 2);
         master.read_u16(SIM_NODE, 0x6041, 0).expect("the simulated drive answers");
         bench_upload(&mut c, "a_motus_master_vs_motus_sim", &master, SIM_NODE);
+        let cpu0 = thread_cpu("canopen-master");
         let (n, err, rate) = timed_rate(&master, SIM_NODE, seconds);
+        let cpu_us = thread_cpu("canopen-master").saturating_sub(cpu0).as_secs_f64() * 1e6 / n.max(1) as f64;
         println!(
             "RATE (a) Motus master -> Motus sim drive (node {SIM_NODE}): {rate:.0} uploads/s \
-             ({n} in {seconds} s, {err} errors)"
+             ({n} in {seconds} s, {err} errors); master CPU {cpu_us:.1} us per upload"
         );
         rate
         // The master leaves the hub here, so the python master has the bus to itself.
     };
 
-    // (d) Motus's master with concurrent transfers to eight simulated drives (one SDO
-    // channel per node, as the master allows), on its own hub.
-    let d_rate = {
-        let hub_d = start_hub();
-        let nodes: Vec<u8> = (20..28).collect();
-        let _sims = Sim::start_many(&hub_d, &nodes);
-        let master = Arc::new(Master::new(connect(&hub_d)));
-        std::thread::sleep(SETTLE * 2);
-        for n in &nodes {
-            master.read_u16(*n, 0x6041, 0).expect("the simulated drives answer");
-        }
-        let start = Instant::now();
-        let threads: Vec<_> = nodes
-            .iter()
-            .map(|n| {
-                let (m, n) = (Arc::clone(&master), *n);
-                std::thread::spawn(move || timed_rate(&m, n, seconds))
-            })
-            .collect();
-        let (mut total, mut errors) = (0u64, 0u64);
-        for t in threads {
-            let (n, e, _) = t.join().unwrap();
-            total += n;
-            errors += e;
-        }
-        let rate = total as f64 / start.elapsed().as_secs_f64();
-        println!(
-            "RATE (d) Motus master, concurrent transfers to {} simulated drives: {rate:.0} uploads/s \
-             ({total} in {seconds} s, {errors} errors)",
-            nodes.len()
-        );
-        // (e) the same eight drives from ONE thread with `sdo_upload_many`: every request
-        // sent, then the answers collected as they come.
-        let requests: Vec<(u8, u16, u8)> = nodes.iter().map(|n| (*n, 0x6041, 0)).collect();
-        let (mut ok, mut errs) = (0u64, 0u64);
-        let start = Instant::now();
-        let until = start + Duration::from_secs_f64(seconds);
-        while Instant::now() < until {
-            for r in master.sdo_upload_many(&requests) {
-                if r.is_ok() {
-                    ok += 1;
-                } else {
-                    errs += 1;
-                }
-            }
-        }
-        let e_rate = ok as f64 / start.elapsed().as_secs_f64();
-        println!(
-            "RATE (e) Motus master, one thread, sdo_upload_many over {} simulated drives: {e_rate:.0} uploads/s \
-             ({ok} in {seconds} s, {errs} errors)",
-            nodes.len()
-        );
-        // (f) python-canopen's master with the same workload: one thread per drive, on the
-        // same hub (Motus's master is idle meanwhile).
-        let eds = eds_file(nodes[0]);
-        let mut args = script_args("master", &hub_d, nodes[0], eds.path(), seconds);
-        args.push("--nodes".into());
-        args.push(nodes.iter().map(ToString::to_string).collect::<Vec<_>>().join(","));
-        let (ok, lines, stderr) = Python::spawn(&args).finish(Duration::from_secs_f64(seconds + 30.0));
-        let f_rate = lines
-            .iter()
-            .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-            .find(|v| v["role"] == "master")
-            .and_then(|v| v["rate_per_s"].as_f64());
-        match f_rate {
-            Some(f) => {
-                println!(
-                    "RATE (f) python-canopen master, concurrent transfers to {} simulated drives (one thread each): {f:.0} uploads/s",
-                    nodes.len()
-                );
-                println!(
-                    "RATIO max((d),(e))/(f) Motus master / python-canopen master, both with concurrent transfers to {} drives: {:.1}x (target >= 10x: {})",
-                    nodes.len(),
-                    rate.max(e_rate) / f,
-                    if rate.max(e_rate) >= 10.0 * f { "met" } else { "NOT met" }
-                );
-            }
-            None => println!("RATE (f) python-canopen master, concurrent: FAILED (exit ok: {ok})\nstdout: {lines:?}\nstderr: {stderr}"),
-        }
-        rate.max(e_rate)
-    };
+    // (d), (e), (f): concurrent transfers to N drives (one SDO channel per node).
+    let sizes: Vec<usize> = std::env::var("BENCH_SDO_NODES")
+        .ok()
+        .map(|v| v.split(',').filter_map(|n| n.trim().parse().ok()).collect())
+        .unwrap_or_else(|| vec![8, 16, 32]);
+    let d_rate = sizes.iter().map(|n| concurrent(*n, seconds)).fold(0.0, f64::max);
 
     // (c) python-canopen's master against the same simulated drive.
     let eds_sim = eds_file(SIM_NODE);
@@ -350,7 +392,12 @@ fn main() {
     let c_rate = c_json.as_ref().and_then(|v| v["rate_per_s"].as_f64());
     match (ok, &c_json, c_rate) {
         (true, Some(v), Some(rate)) => {
-            println!("RATE (c) python-canopen master -> Motus sim drive (node {SIM_NODE}): {rate:.0} uploads/s ({v})");
+            let cpu_us =
+                v["cpu_s"].as_f64().unwrap_or(0.0) * 1e6 / v["uploads"].as_f64().unwrap_or(1.0).max(1.0);
+            println!(
+                "RATE (c) python-canopen master -> Motus sim drive (node {SIM_NODE}): {rate:.0} uploads/s; \
+                 master CPU {cpu_us:.1} us per upload ({v})"
+            );
             println!(
                 "RATIO max((d),(e))/(c) Motus master with concurrent transfers / python-canopen master: {:.1}x (target >= 10x: {})",
                 d_rate / rate,

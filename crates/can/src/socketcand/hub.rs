@@ -1,18 +1,24 @@
 //! A virtual CAN bus speaking the server side of the socketcand protocol over TCP.
 //!
 //! Every frame a client sends reaches every *other* client (no echo), in one global
-//! order. With a bit rate configured, one dispatcher thread models the bus: a frame is
-//! delivered when the virtual bus has carried it (`deliver_at = max(arrival, bus_free_at)
-//! + frame_time`), so the hub carries no more frames per second than a real bus would.
+//! order. One thread serves every client from an event loop (`epoll` through `mio`): a
+//! frame read from one socket is written to the others by the same thread, with no
+//! hand-off between threads (see `docs/decisions.md`). With a bit rate configured, the
+//! loop also models the bus: a frame is delivered when the virtual bus has carried it
+//! (`deliver_at = max(arrival, bus_free_at) + frame_time`), so the hub carries no more
+//! frames per second than a real bus would.
 
-use super::session::{self, ClientHandle, Counters, Outgoing};
+use super::bus_model::BusModel;
+use super::session::{Chunk, Counters, Session, QUEUE_CAPACITY};
 use crate::{wire_time, CanError, CanFrame};
-use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
+use mio::net::TcpListener;
+use mio::{Events, Interest, Poll, Token, Waker};
+use std::collections::HashMap;
+use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{channel, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 /// How to start a [`Hub`].
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -53,14 +59,11 @@ pub struct HubStats {
     pub clients: Vec<ClientStats>,
 }
 
-/// State shared by the hub's threads.
-pub(crate) struct Shared {
-    pub channel: String,
+/// Counters shared between the loop and [`Hub::stats`].
+#[derive(Default)]
+struct Shared {
     stop: AtomicBool,
-    clients: Mutex<Vec<ClientHandle>>,
     seen: Mutex<Vec<Arc<Counters>>>,
-    sockets: Mutex<Vec<(u64, TcpStream)>>,
-    dispatch: Option<Mutex<Sender<(Instant, u64, CanFrame)>>>,
     frames: AtomicU64,
     bits: AtomicU64,
     remote: AtomicU64,
@@ -70,138 +73,49 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
-impl Shared {
-    pub fn stopping(&self) -> bool {
-        self.stop.load(Ordering::Relaxed)
-    }
-
-    pub fn register_counters(&self, c: Arc<Counters>) {
-        lock(&self.seen).push(c);
-    }
-
-    pub fn join(&self, client: ClientHandle) {
-        lock(&self.clients).push(client);
-    }
-
-    /// Client `id` is gone: forget its queue and socket.
-    pub fn leave(&self, id: u64) {
-        lock(&self.clients).retain(|c| c.counters.id != id);
-        lock(&self.sockets).retain(|(i, _)| *i != id);
-    }
-
-    /// A frame sent by client `source` enters the bus.
-    pub fn submit(&self, source: u64, frame: CanFrame) {
-        if frame.is_remote() {
-            self.remote.fetch_add(1, Ordering::Relaxed);
-            tracing::debug!("socketcand hub: dropping remote frame {frame}");
-            return;
-        }
-        match &self.dispatch {
-            Some(tx) => {
-                let _ = lock(tx).send((Instant::now(), source, frame));
-            }
-            None => self.fan_out(source, frame),
-        }
-    }
-
-    /// Frames sent by client `source` in one read enter the bus together: every other
-    /// client gets them as one message (its writer wakes once for the batch).
-    pub fn submit_many(&self, source: u64, frames: Vec<CanFrame>) {
-        let (remote, data): (Vec<CanFrame>, Vec<CanFrame>) =
-            frames.into_iter().partition(CanFrame::is_remote);
-        if !remote.is_empty() {
-            self.remote.fetch_add(remote.len() as u64, Ordering::Relaxed);
-            tracing::debug!("socketcand hub: dropping {} remote frame(s)", remote.len());
-        }
-        if self.dispatch.is_some() || data.len() == 1 {
-            // The bus model times each frame; a single frame needs no batch.
-            for f in data {
-                self.submit(source, f);
-            }
-            return;
-        }
-        if data.is_empty() {
-            return;
-        }
-        let mut clients = lock(&self.clients);
-        self.frames.fetch_add(data.len() as u64, Ordering::Relaxed);
-        let bits: u64 = data.iter().map(|f| u64::from(wire_time::worst_case_bits(f))).sum();
-        self.bits.fetch_add(bits, Ordering::Relaxed);
-        let batch: Arc<[CanFrame]> = data.into();
-        clients.retain(|c| c.counters.id == source || c.offer(Outgoing::Frames(Arc::clone(&batch))));
-    }
-
-    /// Queues `frame` for every client but `source`, dropping clients that overflow.
-    fn fan_out(&self, source: u64, frame: CanFrame) {
-        let mut clients = lock(&self.clients);
-        self.frames.fetch_add(1, Ordering::Relaxed);
-        self.bits.fetch_add(u64::from(wire_time::worst_case_bits(&frame)), Ordering::Relaxed);
-        clients.retain(|c| c.counters.id == source || c.offer(Outgoing::Frame(frame.clone())));
-    }
-}
+const LISTENER: Token = Token(0);
+const WAKER: Token = Token(1);
+/// Tokens of clients start here.
+const FIRST_CLIENT: u64 = 2;
 
 /// A running socketcand hub. Stops on [`Hub::stop`] or drop.
 pub struct Hub {
     local_addr: SocketAddr,
+    channel: String,
     shared: Arc<Shared>,
-    threads: Vec<JoinHandle<()>>,
+    waker: Arc<Waker>,
+    thread: Option<JoinHandle<()>>,
 }
 
 impl Hub {
     /// Binds `config.listen` and starts serving.
     pub fn start(config: HubConfig) -> Result<Hub, CanError> {
-        let listener = TcpListener::bind(config.listen)?;
-        listener.set_nonblocking(true)?;
-        let local_addr = listener.local_addr()?;
-        let (dispatch, dispatch_rx) = match config.bitrate {
-            Some(0) => return Err(CanError::Address("hub bit rate must be > 0".into())),
-            Some(_) => {
-                let (tx, rx) = channel();
-                (Some(Mutex::new(tx)), Some(rx))
-            }
-            None => (None, None),
-        };
-        let shared = Arc::new(Shared {
-            channel: config.channel,
-            stop: AtomicBool::new(false),
-            clients: Mutex::new(Vec::new()),
-            seen: Mutex::new(Vec::new()),
-            sockets: Mutex::new(Vec::new()),
-            dispatch,
-            frames: AtomicU64::new(0),
-            bits: AtomicU64::new(0),
-            remote: AtomicU64::new(0),
-        });
-        let mut threads = Vec::new();
-        let s = shared.clone();
-        threads.push(
-            std::thread::Builder::new()
-                .name("socketcand-accept".into())
-                .spawn(move || accept_loop(&s, &listener))?,
-        );
-        if let (Some(rx), Some(bitrate)) = (dispatch_rx, config.bitrate) {
-            let s = shared.clone();
-            let run = move || {
-                let mut bus_free_at = Instant::now();
-                while !s.stopping() {
-                    let (arrival, source, frame) = match rx.recv_timeout(Duration::from_millis(50)) {
-                        Ok(item) => item,
-                        Err(RecvTimeoutError::Timeout) => continue,
-                        Err(RecvTimeoutError::Disconnected) => return,
-                    };
-                    let deliver_at = arrival.max(bus_free_at) + wire_time::frame_time(&frame, bitrate);
-                    let now = Instant::now();
-                    if deliver_at > now {
-                        std::thread::sleep(deliver_at - now);
-                    }
-                    bus_free_at = deliver_at;
-                    s.fan_out(source, frame);
-                }
-            };
-            threads.push(std::thread::Builder::new().name("socketcand-bus".into()).spawn(run)?);
+        if config.bitrate == Some(0) {
+            return Err(CanError::Address("hub bit rate must be > 0".into()));
         }
+        let std_listener = std::net::TcpListener::bind(config.listen)?;
+        std_listener.set_nonblocking(true)?;
+        let local_addr = std_listener.local_addr()?;
+        let mut listener = TcpListener::from_std(std_listener);
+        let poll = Poll::new()?;
+        poll.registry().register(&mut listener, LISTENER, Interest::READABLE)?;
+        let waker = Arc::new(Waker::new(poll.registry(), WAKER)?);
+        let shared = Arc::new(Shared::default());
+        let mut event_loop = EventLoop {
+            poll,
+            listener,
+            shared: Arc::clone(&shared),
+            channel: config.channel.clone(),
+            sessions: HashMap::new(),
+            next_id: 0,
+            bus: config.bitrate.map(BusModel::new),
+            dirty: Vec::new(),
+            again: Vec::new(),
+        };
+        let thread =
+            std::thread::Builder::new().name("socketcand-hub".into()).spawn(move || event_loop.run())?;
         tracing::info!(%local_addr, bitrate = ?config.bitrate, "socketcand hub listening");
-        Ok(Hub { local_addr, shared, threads })
+        Ok(Hub { local_addr, channel: config.channel, shared, waker, thread: Some(thread) })
     }
 
     /// The address the hub listens on.
@@ -211,7 +125,7 @@ impl Hub {
 
     /// The URI clients can pass to [`crate::open_bus`].
     pub fn uri(&self) -> String {
-        format!("socketcand://{}/{}", self.local_addr, self.shared.channel)
+        format!("socketcand://{}/{}", self.local_addr, self.channel)
     }
 
     /// A snapshot of the counters.
@@ -234,15 +148,14 @@ impl Hub {
         }
     }
 
-    /// Stops accepting, disconnects every client and joins the hub's threads.
+    /// Stops accepting, disconnects every client and joins the hub's thread.
     pub fn stop(&mut self) {
         self.shared.stop.store(true, Ordering::Relaxed);
-        for t in self.threads.drain(..) {
-            let _ = t.join();
+        if let Err(e) = self.waker.wake() {
+            tracing::warn!("socketcand hub: cannot wake the event loop to stop it: {e}");
         }
-        lock(&self.shared.clients).clear();
-        for (_, s) in lock(&self.shared.sockets).drain(..) {
-            let _ = s.shutdown(Shutdown::Both);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
         }
     }
 }
@@ -253,34 +166,240 @@ impl Drop for Hub {
     }
 }
 
-fn accept_loop(shared: &Arc<Shared>, listener: &TcpListener) {
-    let mut next_id = 0u64;
-    while !shared.stopping() {
-        match listener.accept() {
-            Ok((stream, peer)) => {
-                next_id += 1;
-                let id = next_id;
-                if stream.set_nonblocking(false).is_err() {
-                    continue;
-                }
-                if let Ok(copy) = stream.try_clone() {
-                    lock(&shared.sockets).push((id, copy));
-                }
-                let s = shared.clone();
-                let spawned = std::thread::Builder::new()
-                    .name(format!("socketcand-r{id}"))
-                    .spawn(move || session::serve(s, stream, id, peer));
-                if let Err(e) = spawned {
-                    tracing::warn!("socketcand hub: cannot start client thread: {e}");
+fn wall_clock() -> Duration {
+    SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default()
+}
+
+/// The hub's thread: every socket, the bus model and the fan-out.
+struct EventLoop {
+    poll: Poll,
+    listener: TcpListener,
+    shared: Arc<Shared>,
+    channel: String,
+    sessions: HashMap<u64, Session>,
+    next_id: u64,
+    bus: Option<BusModel>,
+    /// Clients with text queued in this turn (flushed at its end).
+    dirty: Vec<u64>,
+    /// Clients whose read budget ran out (read again in the next turn).
+    again: Vec<u64>,
+}
+
+impl EventLoop {
+    fn run(&mut self) {
+        let mut events = Events::with_capacity(256);
+        while !self.shared.stop.load(Ordering::Relaxed) {
+            let timeout = self.timeout(Instant::now());
+            if let Err(e) = self.poll.poll(&mut events, timeout) {
+                if e.kind() != std::io::ErrorKind::Interrupted {
+                    tracing::error!("socketcand hub: poll failed, stopping: {e}");
+                    break;
                 }
             }
-            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
-                std::thread::sleep(Duration::from_millis(5))
+            for event in events.iter() {
+                match event.token() {
+                    LISTENER => self.accept(),
+                    WAKER => {}
+                    Token(t) => {
+                        let id = t as u64;
+                        if event.is_readable() || event.is_read_closed() || event.is_error() {
+                            self.read(id);
+                        }
+                        if event.is_writable() {
+                            self.dirty.push(id);
+                        }
+                    }
+                }
             }
-            Err(e) => {
-                tracing::warn!("socketcand hub: accept failed: {e}");
-                std::thread::sleep(Duration::from_millis(50));
+            for id in std::mem::take(&mut self.again) {
+                self.read(id);
+            }
+            self.deliver_due();
+            self.flush_dirty();
+        }
+        for (_, s) in self.sessions.drain() {
+            s.counters.connected.store(false, Ordering::Relaxed);
+        }
+    }
+
+    /// How long the next poll may wait: until a client's settle time ends, a modelled
+    /// frame is due, or (without either) until woken.
+    fn timeout(&mut self, now: Instant) -> Option<Duration> {
+        if !self.again.is_empty() {
+            return Some(Duration::ZERO);
+        }
+        let settle = self
+            .sessions
+            .values()
+            .filter(|s| s.pending())
+            .filter_map(|s| s.ready_at)
+            .filter(|t| *t > now)
+            .min();
+        let due = self.bus.as_ref().and_then(BusModel::next_due);
+        let next = match (settle, due) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }?;
+        let left = next.saturating_duration_since(now);
+        // epoll waits whole milliseconds: the last stretch of a modelled frame is slept
+        // precisely, with the sockets polled just before and just after.
+        if due == Some(next) && left < Duration::from_micros(1500) {
+            std::thread::sleep(left);
+            return Some(Duration::ZERO);
+        }
+        Some(left)
+    }
+
+    fn accept(&mut self) {
+        loop {
+            match self.listener.accept() {
+                Ok((stream, peer)) => {
+                    self.next_id += 1;
+                    let id = self.next_id;
+                    let mut session = match Session::accept(stream, id, peer) {
+                        Ok(s) => s,
+                        Err(e) => {
+                            tracing::debug!(%peer, "socketcand hub: client lost in the handshake: {e}");
+                            continue;
+                        }
+                    };
+                    let token = Token((id + FIRST_CLIENT) as usize);
+                    if let Err(e) =
+                        self.poll.registry().register(&mut session.stream, token, Interest::READABLE)
+                    {
+                        tracing::warn!(%peer, "socketcand hub: cannot watch the client: {e}");
+                        continue;
+                    }
+                    lock(&self.shared.seen).push(Arc::clone(&session.counters));
+                    self.sessions.insert(id + FIRST_CLIENT, session);
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => {
+                    tracing::warn!("socketcand hub: accept failed: {e}");
+                    return;
+                }
             }
         }
+    }
+
+    fn read(&mut self, key: u64) {
+        let Some(session) = self.sessions.get_mut(&key) else { return };
+        let input = session.read(&self.channel, Instant::now());
+        if input.more {
+            self.again.push(key);
+        }
+        for batch in input.batches {
+            self.submit(key, batch);
+        }
+        if input.closed {
+            self.remove(key, "closed the connection", false);
+        }
+    }
+
+    /// Frames sent by client `source` in one read enter the bus together.
+    fn submit(&mut self, source: u64, frames: Vec<CanFrame>) {
+        let (remote, data): (Vec<CanFrame>, Vec<CanFrame>) =
+            frames.into_iter().partition(CanFrame::is_remote);
+        if !remote.is_empty() {
+            self.shared.remote.fetch_add(remote.len() as u64, Ordering::Relaxed);
+            tracing::debug!("socketcand hub: dropping {} remote frame(s)", remote.len());
+        }
+        if data.is_empty() {
+            return;
+        }
+        match &mut self.bus {
+            Some(bus) => {
+                let now = Instant::now();
+                for frame in data {
+                    bus.enter(now, source, frame);
+                }
+            }
+            None => self.fan_out(source, &data),
+        }
+    }
+
+    /// Delivers the modelled frames whose time has come.
+    fn deliver_due(&mut self) {
+        let Some(bus) = &mut self.bus else { return };
+        let due = bus.take_due(Instant::now());
+        for (source, frame) in due {
+            self.fan_out(source, std::slice::from_ref(&frame));
+        }
+    }
+
+    /// Queues `frames` for every joined client but `source`, dropping clients whose
+    /// queue overflows.
+    fn fan_out(&mut self, source: u64, frames: &[CanFrame]) {
+        self.shared.frames.fetch_add(frames.len() as u64, Ordering::Relaxed);
+        let bits: u64 = frames.iter().map(|f| u64::from(wire_time::worst_case_bits(f))).sum();
+        self.shared.bits.fetch_add(bits, Ordering::Relaxed);
+        let chunk = Chunk::frames(frames, wall_clock());
+        let mut overflowed = Vec::new();
+        for (key, s) in &mut self.sessions {
+            if *key == source || !s.joined() {
+                continue;
+            }
+            if s.push(&chunk) {
+                self.dirty.push(*key);
+            } else {
+                overflowed.push(*key);
+            }
+        }
+        for key in overflowed {
+            self.remove(
+                key,
+                &format!("is not reading: over {QUEUE_CAPACITY} frames queued, disconnecting"),
+                true,
+            );
+        }
+    }
+
+    /// Writes what is queued for the clients touched in this turn and for those whose
+    /// settle time has ended.
+    fn flush_dirty(&mut self) {
+        let now = Instant::now();
+        let mut keys = std::mem::take(&mut self.dirty);
+        keys.extend(
+            self.sessions
+                .iter()
+                .filter(|(_, s)| s.pending() && !s.want_write && s.ready_at.is_some_and(|t| t <= now))
+                .map(|(k, _)| *k),
+        );
+        keys.sort_unstable();
+        keys.dedup();
+        for key in keys {
+            let Some(s) = self.sessions.get_mut(&key) else { continue };
+            match s.flush(now) {
+                Ok(done) => {
+                    // Watch writability only while the socket refuses text.
+                    let want = !done && s.ready_at.is_some_and(|t| t <= now);
+                    if want != s.want_write {
+                        let interest =
+                            if want { Interest::READABLE | Interest::WRITABLE } else { Interest::READABLE };
+                        let token = Token(key as usize);
+                        if let Err(e) = self.poll.registry().reregister(&mut s.stream, token, interest) {
+                            tracing::warn!(client = s.id(), "socketcand hub: cannot watch the client: {e}");
+                        }
+                        s.want_write = want;
+                    }
+                }
+                Err(e) => self.remove(key, &format!("write failed ({e}), disconnecting"), true),
+            }
+        }
+    }
+
+    /// Forgets client `key` and closes its socket; `why` is logged (as a warning when
+    /// the hub drops a client that did not leave by itself).
+    fn remove(&mut self, key: u64, why: &str, dropped: bool) {
+        let Some(mut s) = self.sessions.remove(&key) else { return };
+        if dropped {
+            tracing::warn!(client = s.id(), peer = %s.counters.peer, "socketcand hub: client {why}");
+        } else {
+            tracing::debug!(client = s.id(), peer = %s.counters.peer, "socketcand hub: client {why}");
+        }
+        let _ = self.poll.registry().deregister(&mut s.stream);
+        s.counters.connected.store(false, Ordering::Relaxed);
+        let _ = s.stream.shutdown(std::net::Shutdown::Both);
     }
 }

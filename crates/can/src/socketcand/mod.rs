@@ -13,6 +13,7 @@
 //! # Ok(()) }
 //! ```
 
+mod bus_model;
 pub mod client;
 pub mod codec;
 pub mod hub;

@@ -1,47 +1,32 @@
-//! One client of the [`Hub`](super::Hub): handshake, reader thread, writer thread.
+//! One client of the [`Hub`](super::Hub): its handshake state, what it sent, and the
+//! text waiting to be written to it.
 //!
-//! The reader answers the handshake (`< hi >`, `< ok >`, `< ok >`), then hands every
-//! frame the client sends to the hub. The writer owns a bounded queue; it waits
-//! [`SETTLE`] after the handshake before writing any frame (python-can reads each
-//! handshake reply with a single `recv`), and batches queued messages into one write.
+//! A session never blocks: the hub's event loop reads what a readable socket has and
+//! writes what a writable one takes. Handshake replies (`< hi >`, `< ok >`, `< ok >`)
+//! are written at once; bus traffic waits [`SETTLE`] after the last `< ok >` (python-can
+//! reads each handshake reply with a single `recv`), then goes out in as few writes as
+//! the socket allows.
 
 use super::codec::{Message, StreamParser};
-use super::hub::Shared;
 use crate::CanFrame;
-use std::io::{Read, Write};
-use std::net::{Shutdown, SocketAddr, TcpStream};
+use mio::net::TcpStream;
+use std::collections::VecDeque;
+use std::io::{ErrorKind, IoSlice, Read, Write};
+use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::sync::Arc;
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 /// Time between the last handshake reply and the first frame written to a client.
 pub const SETTLE: Duration = Duration::from_millis(100);
 /// Frames (and echo replies) queued for one client before it is considered dead and
 /// disconnected.
 pub const QUEUE_CAPACITY: usize = 65_536;
-/// Most messages written to a socket in one batch.
-const BATCH: usize = 256;
-
-/// A message for a client's writer.
-pub(crate) enum Outgoing {
-    /// A frame delivered by the bus.
-    Frame(CanFrame),
-    /// Frames another client sent in one write, delivered together.
-    Frames(Arc<[CanFrame]>),
-    /// The answer to `< echo >`.
-    Echo,
-}
-
-impl Outgoing {
-    /// How much of a client's [`QUEUE_CAPACITY`] this message takes.
-    fn weight(&self) -> usize {
-        match self {
-            Outgoing::Frames(batch) => batch.len().max(1),
-            Outgoing::Frame(_) | Outgoing::Echo => 1,
-        }
-    }
-}
+/// Most queued chunks handed to one `writev`.
+const MAX_IOV: usize = 64;
+/// Most reads of one socket per readiness event (a client that never stops sending
+/// cannot starve the others; the loop comes back to it).
+const READS_PER_TURN: usize = 16;
 
 /// Counters of one client, kept after it leaves.
 #[derive(Debug)]
@@ -51,182 +36,242 @@ pub(crate) struct Counters {
     pub from_client: AtomicU64,
     pub to_client: AtomicU64,
     pub connected: AtomicBool,
-    /// Frames and echo replies queued for the client's writer.
+    /// Frames and echo replies queued and not yet written.
     pub queued: AtomicUsize,
 }
 
-/// What the hub keeps of a joined client.
-pub(crate) struct ClientHandle {
+/// Text shared by every client a batch of frames goes to (formatted once).
+pub(crate) struct Chunk {
+    text: Arc<[u8]>,
+    /// Frames in the text.
+    frames: u64,
+    /// Share of [`QUEUE_CAPACITY`] it takes (frames, or 1 for an echo reply).
+    weight: usize,
+}
+
+impl Chunk {
+    /// Frames delivered by the bus, with one time stamp.
+    pub fn frames(frames: &[CanFrame], timestamp: Duration) -> Chunk {
+        let mut text = String::with_capacity(40 * frames.len());
+        for frame in frames {
+            Message::Frame { frame: frame.clone(), timestamp }.format_into(&mut text);
+        }
+        Chunk { text: text.into_bytes().into(), frames: frames.len() as u64, weight: frames.len().max(1) }
+    }
+
+    /// The answer to `< echo >`.
+    fn echo() -> Chunk {
+        Chunk { text: Message::Echo.format().into_bytes().into(), frames: 0, weight: 1 }
+    }
+
+    fn share(&self) -> Chunk {
+        Chunk { text: Arc::clone(&self.text), frames: self.frames, weight: self.weight }
+    }
+}
+
+/// What reading a client produced.
+#[derive(Default)]
+pub(crate) struct Input {
+    /// Frames sent to the bus, in order; each inner list came in one read.
+    pub batches: Vec<Vec<CanFrame>>,
+    /// The client finished the handshake in this read (it now receives bus traffic).
+    pub joined: bool,
+    /// The socket is closed or failed; the client must be removed.
+    pub closed: bool,
+    /// The read budget ran out before the socket was drained: read again soon.
+    pub more: bool,
+}
+
+/// One connected client.
+pub(crate) struct Session {
     pub counters: Arc<Counters>,
-    pub tx: SyncSender<Outgoing>,
     pub stream: TcpStream,
+    parser: StreamParser,
+    opened: bool,
+    /// Set once `< rawmode >` was answered: bus traffic may be written from this instant.
+    pub ready_at: Option<Instant>,
+    out: VecDeque<Chunk>,
+    /// Bytes of the front chunk already written.
+    written: usize,
+    /// Whether the socket is registered for writability (it refused a write).
+    pub want_write: bool,
 }
 
-impl ClientHandle {
-    /// Queues `msg`; `false` when the client must be dropped (queue full or writer gone).
-    pub fn offer(&self, msg: Outgoing) -> bool {
-        let weight = msg.weight();
-        let queued = self.counters.queued.fetch_add(weight, Ordering::Relaxed) + weight;
-        let sent = if queued > QUEUE_CAPACITY { Err(TrySendError::Full(msg)) } else { self.tx.try_send(msg) };
-        match sent {
-            Ok(()) => true,
-            Err(TrySendError::Full(_)) => {
-                tracing::warn!(client = self.counters.id, peer = %self.counters.peer,
-                    "socketcand hub: client queue overflow ({QUEUE_CAPACITY} messages), disconnecting");
-                let _ = self.stream.shutdown(Shutdown::Both);
-                false
+impl Session {
+    /// A freshly accepted client; `< hi >` is written at once.
+    pub fn accept(stream: TcpStream, id: u64, peer: SocketAddr) -> std::io::Result<Session> {
+        stream.set_nodelay(true)?;
+        let counters = Arc::new(Counters {
+            id,
+            peer,
+            from_client: AtomicU64::new(0),
+            to_client: AtomicU64::new(0),
+            connected: AtomicBool::new(true),
+            queued: AtomicUsize::new(0),
+        });
+        let mut s = Session {
+            counters,
+            stream,
+            parser: StreamParser::new(),
+            opened: false,
+            ready_at: None,
+            out: VecDeque::new(),
+            written: 0,
+            want_write: false,
+        };
+        s.reply(&Message::Hi)?;
+        Ok(s)
+    }
+
+    /// Client number.
+    pub fn id(&self) -> u64 {
+        self.counters.id
+    }
+
+    /// Whether the client receives bus traffic.
+    pub fn joined(&self) -> bool {
+        self.ready_at.is_some()
+    }
+
+    /// Writes a handshake reply now. These are a few bytes into an empty socket; a
+    /// socket that cannot take them is treated as broken.
+    fn reply(&mut self, msg: &Message) -> std::io::Result<()> {
+        self.stream.write_all(msg.format().as_bytes())
+    }
+
+    /// Reads what the socket has (up to a budget) and handles the handshake and echo;
+    /// frames are returned for the bus.
+    pub fn read(&mut self, channel: &str, now: Instant) -> Input {
+        let mut input = Input::default();
+        let mut buf = [0u8; 16 * 1024];
+        for turn in 0.. {
+            if turn == READS_PER_TURN {
+                input.more = true;
+                break;
             }
-            Err(TrySendError::Disconnected(_)) => false,
+            match self.stream.read(&mut buf) {
+                Ok(0) => {
+                    input.closed = true;
+                    break;
+                }
+                Ok(n) => {
+                    self.parser.push(buf.get(..n).unwrap_or(&[]));
+                    if let Err(e) = self.handle_messages(channel, now, &mut input) {
+                        tracing::debug!(client = self.id(), "socketcand hub: reply failed: {e}");
+                        input.closed = true;
+                        break;
+                    }
+                }
+                Err(e) if e.kind() == ErrorKind::WouldBlock => break,
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) => {
+                    tracing::debug!(client = self.id(), "socketcand hub: read failed: {e}");
+                    input.closed = true;
+                    break;
+                }
+            }
         }
+        input
     }
-}
 
-/// Serves one accepted connection until it closes (runs on its own thread).
-pub(crate) fn serve(shared: Arc<Shared>, stream: TcpStream, id: u64, peer: SocketAddr) {
-    let counters = Arc::new(Counters {
-        id,
-        peer,
-        from_client: AtomicU64::new(0),
-        to_client: AtomicU64::new(0),
-        connected: AtomicBool::new(true),
-        queued: AtomicUsize::new(0),
-    });
-    shared.register_counters(counters.clone());
-    if let Err(e) = run(&shared, &stream, &counters) {
-        tracing::debug!(client = id, %peer, "socketcand hub: client ended: {e}");
-    }
-    counters.connected.store(false, Ordering::Relaxed);
-    shared.leave(id);
-    let _ = stream.shutdown(Shutdown::Both);
-}
-
-fn run(shared: &Arc<Shared>, stream: &TcpStream, counters: &Arc<Counters>) -> std::io::Result<()> {
-    stream.set_nodelay(true)?;
-    let mut reader = stream.try_clone()?;
-    let mut direct = stream.try_clone()?;
-    direct.write_all(Message::Hi.format().as_bytes())?;
-    let mut parser = StreamParser::new();
-    let mut buf = [0u8; 4096];
-    let mut opened = false;
-    let mut joined: Option<SyncSender<Outgoing>> = None;
-    loop {
-        let n = reader.read(&mut buf)?;
-        if n == 0 || shared.stopping() {
-            return Ok(());
-        }
-        parser.push(buf.get(..n).unwrap_or(&[]));
-        // The frames of one read enter the bus together (see `Shared::submit_many`).
+    fn handle_messages(&mut self, channel: &str, now: Instant, input: &mut Input) -> std::io::Result<()> {
         let mut frames = Vec::new();
-        for msg in parser.by_ref() {
-            if !matches!(msg, Message::Send(_)) && !frames.is_empty() {
-                shared.submit_many(counters.id, std::mem::take(&mut frames));
-            }
-            match (msg, &joined) {
-                (Message::Open(channel), None) => {
-                    if channel != shared.channel {
-                        tracing::debug!(
-                            client = counters.id,
-                            "client opened {channel:?}, hub serves {:?}",
-                            shared.channel
-                        );
-                    }
-                    opened = true;
-                    direct.write_all(Message::Ok.format().as_bytes())?;
-                }
-                (Message::Rawmode, None) if opened => {
-                    // Join first (the writer holds frames for SETTLE), then confirm: a frame
-                    // sent by another client after our client saw `< ok >` reaches it.
-                    let (tx, go) = join(shared, stream, counters)?;
-                    joined = Some(tx);
-                    direct.write_all(Message::Ok.format().as_bytes())?;
-                    let _ = go.send(Instant::now());
-                }
-                (Message::Echo, Some(tx)) => {
-                    counters.queued.fetch_add(1, Ordering::Relaxed);
-                    if tx.try_send(Outgoing::Echo).is_err() {
-                        counters.queued.fetch_sub(1, Ordering::Relaxed);
-                    }
-                }
-                (Message::Echo, None) => direct.write_all(Message::Echo.format().as_bytes())?,
-                (Message::Send(frame), _) if opened => {
-                    counters.from_client.fetch_add(1, Ordering::Relaxed);
+        while let Some(msg) = self.parser.next() {
+            match msg {
+                Message::Send(frame) if self.opened => {
+                    self.counters.from_client.fetch_add(1, Ordering::Relaxed);
                     frames.push(frame);
+                    continue;
                 }
-                (other, _) => {
-                    tracing::debug!(client = counters.id, "socketcand hub: ignoring {other:?}");
+                Message::Open(name) if !self.joined() => {
+                    if name != channel {
+                        tracing::debug!(client = self.id(), "client opened {name:?}, hub serves {channel:?}");
+                    }
+                    self.opened = true;
+                    self.reply(&Message::Ok)?;
                 }
+                Message::Rawmode if self.opened && !self.joined() => {
+                    // Joined before the `< ok >` leaves: a frame another client sends after
+                    // this client saw the `< ok >` reaches it.
+                    self.ready_at = Some(now + SETTLE);
+                    input.joined = true;
+                    self.reply(&Message::Ok)?;
+                }
+                Message::Echo if self.joined() => {
+                    // Answered in order with the bus traffic queued before it.
+                    self.push(&Chunk::echo());
+                }
+                Message::Echo => self.reply(&Message::Echo)?,
+                other => tracing::debug!(client = self.id(), "socketcand hub: ignoring {other:?}"),
+            }
+            // A non-frame message ends a batch (frames keep their order around it).
+            if !frames.is_empty() {
+                input.batches.push(std::mem::take(&mut frames));
             }
         }
         if !frames.is_empty() {
-            shared.submit_many(counters.id, frames);
+            input.batches.push(frames);
         }
+        Ok(())
     }
-}
 
-/// Starts the writer and adds the client to the bus.
-///
-/// The writer starts writing [`SETTLE`] after the instant sent on the returned `go`
-/// channel (when `< ok >` was written); frames queue meanwhile.
-fn join(
-    shared: &Arc<Shared>,
-    stream: &TcpStream,
-    counters: &Arc<Counters>,
-) -> std::io::Result<(SyncSender<Outgoing>, SyncSender<Instant>)> {
-    let (tx, rx) = sync_channel(QUEUE_CAPACITY);
-    let (go, go_rx) = sync_channel::<Instant>(1);
-    let out = stream.try_clone()?;
-    out.set_write_timeout(Some(Duration::from_secs(5)))?;
-    let c = counters.clone();
-    std::thread::Builder::new().name(format!("socketcand-w{}", counters.id)).spawn(move || {
-        if let Ok(ok_written) = go_rx.recv() {
-            write_loop(out, rx, ok_written + SETTLE, &c);
-        }
-    })?;
-    shared.join(ClientHandle { counters: counters.clone(), tx: tx.clone(), stream: stream.try_clone()? });
-    Ok((tx, go))
-}
-
-fn wall_clock() -> Duration {
-    SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default()
-}
-
-fn write_loop(mut out: TcpStream, rx: Receiver<Outgoing>, ready_at: Instant, counters: &Counters) {
-    let now = Instant::now();
-    if ready_at > now {
-        std::thread::sleep(ready_at - now);
+    /// Queues `chunk`; `false` when the queue is over [`QUEUE_CAPACITY`] (the client is
+    /// not reading and must be dropped).
+    pub fn push(&mut self, chunk: &Chunk) -> bool {
+        let queued = self.counters.queued.fetch_add(chunk.weight, Ordering::Relaxed) + chunk.weight;
+        self.out.push_back(chunk.share());
+        queued <= QUEUE_CAPACITY
     }
-    let mut text = String::with_capacity(64 * BATCH);
-    while let Ok(first) = rx.recv() {
-        text.clear();
-        let mut frames = 0u64;
-        let mut next = Some(first);
-        let mut count = 0;
-        let timestamp = wall_clock();
-        while let Some(msg) = next.take() {
-            counters.queued.fetch_sub(msg.weight(), Ordering::Relaxed);
-            match msg {
-                Outgoing::Frame(frame) => {
-                    frames += 1;
-                    Message::Frame { frame, timestamp }.format_into(&mut text);
-                }
-                Outgoing::Frames(batch) => {
-                    for frame in batch.iter() {
-                        frames += 1;
-                        Message::Frame { frame: frame.clone(), timestamp }.format_into(&mut text);
-                    }
-                }
-                Outgoing::Echo => Message::Echo.format_into(&mut text),
+
+    /// Whether text waits to be written.
+    pub fn pending(&self) -> bool {
+        !self.out.is_empty()
+    }
+
+    /// Writes queued text until the queue is empty or the socket is full (then
+    /// `want_write` is set by the caller). Before `ready_at` nothing is written.
+    /// Returns `Ok(true)` when everything was written.
+    pub fn flush(&mut self, now: Instant) -> std::io::Result<bool> {
+        if !matches!(self.ready_at, Some(t) if now >= t) {
+            return Ok(self.out.is_empty());
+        }
+        while !self.out.is_empty() {
+            let slices: Vec<IoSlice<'_>> = self
+                .out
+                .iter()
+                .take(MAX_IOV)
+                .enumerate()
+                .map(|(i, c)| {
+                    IoSlice::new(if i == 0 { c.text.get(self.written..).unwrap_or(&[]) } else { &c.text })
+                })
+                .collect();
+            let n = match self.stream.write_vectored(&slices) {
+                Ok(0) => return Err(ErrorKind::WriteZero.into()),
+                Ok(n) => n,
+                Err(e) if e.kind() == ErrorKind::WouldBlock => return Ok(false),
+                Err(e) if e.kind() == ErrorKind::Interrupted => continue,
+                Err(e) => return Err(e),
+            };
+            self.consume(n);
+        }
+        Ok(true)
+    }
+
+    /// Drops `n` written bytes from the front of the queue.
+    fn consume(&mut self, mut n: usize) {
+        while n > 0 {
+            let Some(front) = self.out.front() else { return };
+            let left = front.text.len() - self.written.min(front.text.len());
+            if n < left {
+                self.written += n;
+                return;
             }
-            count += 1;
-            if count < BATCH {
-                next = rx.try_recv().ok();
+            n -= left;
+            self.written = 0;
+            if let Some(done) = self.out.pop_front() {
+                self.counters.queued.fetch_sub(done.weight, Ordering::Relaxed);
+                self.counters.to_client.fetch_add(done.frames, Ordering::Relaxed);
             }
         }
-        if let Err(e) = out.write_all(text.as_bytes()) {
-            tracing::warn!(client = counters.id, peer = %counters.peer, "socketcand hub: write failed, disconnecting: {e}");
-            let _ = out.shutdown(Shutdown::Both);
-            return;
-        }
-        counters.to_client.fetch_add(frames, Ordering::Relaxed);
     }
 }

@@ -5,6 +5,7 @@
 mod heartbeat_producer;
 mod lss_ops;
 mod sdo_ops;
+mod spin_wait;
 mod sync_producer;
 
 pub use heartbeat_producer::{consumer_entry, HeartbeatProducer};
@@ -141,6 +142,8 @@ pub(crate) struct Inner {
     lss_lock: Mutex<()>,
     eds: Mutex<Option<Arc<ObjectDictionary>>>,
     stats: Stats,
+    /// How fast batches of SDO answers come back (decides whether to spin for them).
+    sdo_latency: spin_wait::AnswerLatency,
 }
 
 impl Inner {
@@ -280,6 +283,7 @@ impl Master {
             lss_lock: Mutex::default(),
             eds: Mutex::default(),
             stats: Stats::default(),
+            sdo_latency: spin_wait::AnswerLatency::new(),
         });
         let rx = Arc::clone(&inner);
         let rx_thread = std::thread::Builder::new()

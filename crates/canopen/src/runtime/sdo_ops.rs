@@ -72,16 +72,26 @@ impl Inner {
         let (index, sub) = t.object();
         let ctx = || format!("SDO transfer with node {node} on 0x{index:04X}:{sub:02X}");
         self.send(&first, ctx)?;
+        // Each request is answered once: its answer measures the bus (see `spin_wait`).
+        let mut sent_at = Some(Instant::now());
         loop {
-            let wait = t.deadline().map_or(Duration::ZERO, |d| d.saturating_duration_since(Instant::now()));
-            let step = match rx.recv_timeout(wait) {
-                Ok(r) => t.on_frame(&r.frame, Instant::now()),
+            let deadline = t.deadline().unwrap_or_else(Instant::now);
+            let step = match self.sdo_latency.recv(&rx, sent_at, deadline) {
+                Ok(r) => {
+                    if let Some(at) = sent_at.take() {
+                        self.sdo_latency.record(r.at.saturating_duration_since(at));
+                    }
+                    t.on_frame(&r.frame, Instant::now())
+                }
                 Err(RecvTimeoutError::Timeout) => t.poll(Instant::now()),
                 Err(RecvTimeoutError::Disconnected) => t.poll(Instant::now() + Duration::from_secs(3600)),
             };
             match step {
                 SdoStep::Wait => {}
-                SdoStep::Send(f) => self.send(&f, ctx)?,
+                SdoStep::Send(f) => {
+                    self.send(&f, ctx)?;
+                    sent_at = Some(Instant::now());
+                }
                 SdoStep::Done(data) => return Ok(data),
                 SdoStep::Failed { abort, error } => {
                     if let Some(a) = abort {
@@ -151,11 +161,18 @@ impl Inner {
                 }
             }
         }
+        // On a fast bus the answers are spun for (see `spin_wait`); the first answer's
+        // arrival at the receive thread measures the bus for the next batch.
+        let sent_at = Instant::now();
+        let mut first_answer = true;
         while !active.is_empty() {
             let next = active.values().filter_map(|(_, t)| t.deadline()).min();
-            let wait = next.map_or(Duration::ZERO, |d| d.saturating_duration_since(Instant::now()));
-            let (node, step) = match rx.recv_timeout(wait) {
+            let deadline = next.unwrap_or_else(Instant::now);
+            let (node, step) = match self.sdo_latency.recv(&rx, Some(sent_at), deadline) {
                 Ok(r) => {
+                    if std::mem::take(&mut first_answer) {
+                        self.sdo_latency.record(r.at.saturating_duration_since(sent_at));
+                    }
                     let node = u8::try_from(r.frame.id().wrapping_sub(0x580)).unwrap_or(0);
                     match active.get_mut(&node) {
                         Some((_, t)) => (node, t.on_frame(&r.frame, Instant::now())),
