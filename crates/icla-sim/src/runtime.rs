@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
-use motus_can::{CanBus, CanError};
+use motus_can::{CanBus, CanError, CanFrame};
 
 use crate::drive::SimDrive;
 
@@ -55,18 +55,31 @@ pub fn run_shared(bus: Arc<dyn CanBus>, drives: SharedDrives, stop: Arc<AtomicBo
                     received = bus.recv(Duration::ZERO)?;
                 }
             }
+        }
+        // The answers leave before the timers of every drive are run: with many drives
+        // those cost more than the answers themselves.
+        send_all(&*bus, &mut out)?;
+        {
+            let mut guard = lock(&drives);
             let now = Instant::now();
             for d in guard.iter_mut() {
                 out.extend(d.poll(now));
             }
         }
-        if !out.is_empty() {
-            for f in &out {
-                tracing::trace!(frame = %f, "sim sends");
-            }
-            bus.send_batch(&out)?;
-            out.clear();
-        }
+        send_all(&*bus, &mut out)?;
     }
+    Ok(())
+}
+
+/// Sends `out` in one batch (when not empty) and empties it.
+fn send_all(bus: &dyn CanBus, out: &mut Vec<CanFrame>) -> Result<(), CanError> {
+    if out.is_empty() {
+        return Ok(());
+    }
+    for f in out.iter() {
+        tracing::trace!(frame = %f, "sim sends");
+    }
+    bus.send_batch(out)?;
+    out.clear();
     Ok(())
 }

@@ -161,6 +161,12 @@ impl Session {
                         input.closed = true;
                         break;
                     }
+                    if n < buf.len() {
+                        // The socket is drained: text arriving later raises a new readiness
+                        // event (epoll is edge-triggered on every arrival), so the read that
+                        // would only say "would block" is saved.
+                        break;
+                    }
                 }
                 Err(e) if e.kind() == ErrorKind::WouldBlock => break,
                 Err(e) if e.kind() == ErrorKind::Interrupted => {}

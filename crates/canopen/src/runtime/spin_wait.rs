@@ -13,9 +13,9 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
 
 /// Answers usually slower than this are waited for asleep only.
-pub const SPIN_LATENCY_LIMIT: Duration = Duration::from_micros(200);
+pub const SPIN_LATENCY_LIMIT: Duration = Duration::from_micros(300);
 /// The longest spin before sleeping.
-pub const SPIN_CAP: Duration = Duration::from_micros(300);
+pub const SPIN_CAP: Duration = Duration::from_micros(400);
 /// Spins between two `yield_now` (lets a thread runnable on this CPU answer meanwhile).
 const SPINS_PER_YIELD: u32 = 256;
 
@@ -32,10 +32,13 @@ pub(crate) struct AnswerLatency {
 }
 
 impl AnswerLatency {
+    /// Spinning is allowed unless the environment sets `MOTUS_SDO_SPIN=off` (a host
+    /// whose CPUs are shared with other work may prefer to never spin).
     pub fn new() -> AnswerLatency {
+        let off = std::env::var("MOTUS_SDO_SPIN").is_ok_and(|v| v.eq_ignore_ascii_case("off") || v == "0");
         AnswerLatency {
             average_ns: AtomicU64::new(0),
-            cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            cpus: if off { 1 } else { std::thread::available_parallelism().map_or(1, |n| n.get()) },
             spinners: AtomicUsize::new(0),
         }
     }
@@ -117,9 +120,9 @@ mod tests {
     fn spins_only_for_a_fast_bus_with_a_second_cpu() {
         let us = Duration::from_micros;
         assert_eq!(spin_budget(us(80), 2), us(140));
-        assert_eq!(spin_budget(us(190), 8), SPIN_CAP);
+        assert_eq!(spin_budget(us(290), 8), SPIN_CAP);
         assert_eq!(spin_budget(us(80), 1), Duration::ZERO, "one CPU: the answerer needs it");
-        assert_eq!(spin_budget(us(250), 2), Duration::ZERO, "slow bus: sleep");
+        assert_eq!(spin_budget(us(350), 2), Duration::ZERO, "slow bus: sleep");
         assert_eq!(spin_budget(Duration::ZERO, 2), Duration::ZERO, "nothing measured yet");
     }
 
