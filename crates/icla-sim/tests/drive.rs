@@ -52,6 +52,19 @@ impl Rig {
 }
 
 #[test]
+fn other_nodes_sdo_frames_are_ignored() {
+    let (mut rig, _) = Rig::new(SimConfig::node(2));
+    // Another node's request and another server's response (CiA 301 reserves
+    // 0x601..=0x67F and 0x581..=0x5FF for SDO): no answer, no change.
+    assert!(rig.send("603#2B17100064000000").is_empty());
+    assert!(rig.send("582#4B41600050060000").is_empty());
+    assert!(rig.send("67F#4000100000000000").is_empty());
+    assert_eq!(rig.drive.od().int(0x1017, 0), 1000);
+    // Its own request is still served.
+    assert_eq!(rig.send("602#4000100000000000"), vec!["582#4300100092010200"]);
+}
+
+#[test]
 fn boot_up_heartbeat_and_sdo() {
     let (mut rig, boot) = Rig::new(SimConfig::node(2));
     // Boot-up: 0x700 + 2, data 00 (spec 3.2).
