@@ -14,6 +14,7 @@ use crate::lss::LssIdentity;
 use crate::pdo::{PdoConfig, PdoDirection};
 use crate::sdo_client::{SdoError, SdoStep, SdoTransfer};
 
+use super::spin_wait::WaitPlan;
 use super::{lock, Inner, Master};
 
 /// What [`Master::scan`] found about one node.
@@ -72,14 +73,19 @@ impl Inner {
         let (index, sub) = t.object();
         let ctx = || format!("SDO transfer with node {node} on 0x{index:04X}:{sub:02X}");
         self.send(&first, ctx)?;
-        // Each request is answered once: its answer measures the bus (see `spin_wait`).
+        // Each request is answered once: its answer measures the bus and the way of
+        // waiting (see `spin_wait`).
         let mut sent_at = Some(Instant::now());
+        let mut plan = self.sdo_latency.plan();
         loop {
             let deadline = t.deadline().unwrap_or_else(Instant::now);
-            let step = match self.sdo_latency.recv(&rx, sent_at, deadline) {
+            // Only a request just sent is spun for.
+            let wait = if sent_at.is_some() { plan } else { WaitPlan::SLEEP };
+            let step = match self.sdo_latency.recv(&rx, wait, sent_at.unwrap_or(deadline), deadline) {
                 Ok(r) => {
                     if let Some(at) = sent_at.take() {
-                        self.sdo_latency.record(r.at.saturating_duration_since(at));
+                        self.sdo_latency.record_bus(r.at.saturating_duration_since(at));
+                        self.sdo_latency.record_exchange(plan, at.elapsed());
                     }
                     t.on_frame(&r.frame, Instant::now())
                 }
@@ -91,6 +97,7 @@ impl Inner {
                 SdoStep::Send(f) => {
                     self.send(&f, ctx)?;
                     sent_at = Some(Instant::now());
+                    plan = self.sdo_latency.plan();
                 }
                 SdoStep::Done(data) => return Ok(data),
                 SdoStep::Failed { abort, error } => {
@@ -161,17 +168,19 @@ impl Inner {
                 }
             }
         }
-        // On a fast bus the answers are spun for (see `spin_wait`); the first answer's
-        // arrival at the receive thread measures the bus for the next batch.
+        // On a fast bus the answers may be spun for (see `spin_wait`): the first answer's
+        // arrival at the receive thread measures the bus, the last one the way of waiting.
         let sent_at = Instant::now();
+        let plan = self.sdo_latency.plan();
         let mut first_answer = true;
+        let mut timed_out = false;
         while !active.is_empty() {
             let next = active.values().filter_map(|(_, t)| t.deadline()).min();
             let deadline = next.unwrap_or_else(Instant::now);
-            let (node, step) = match self.sdo_latency.recv(&rx, Some(sent_at), deadline) {
+            let (node, step) = match self.sdo_latency.recv(&rx, plan, sent_at, deadline) {
                 Ok(r) => {
                     if std::mem::take(&mut first_answer) {
-                        self.sdo_latency.record(r.at.saturating_duration_since(sent_at));
+                        self.sdo_latency.record_bus(r.at.saturating_duration_since(sent_at));
                     }
                     let node = u8::try_from(r.frame.id().wrapping_sub(0x580)).unwrap_or(0);
                     match active.get_mut(&node) {
@@ -181,6 +190,7 @@ impl Inner {
                 }
                 Err(_) => {
                     // Time-out: poll every transfer (the one due fails, the others wait).
+                    timed_out = true;
                     let now = Instant::now();
                     let due: Vec<u8> = active
                         .iter()
@@ -217,6 +227,9 @@ impl Inner {
                     }
                 }
             }
+        }
+        if !timed_out && !first_answer {
+            self.sdo_latency.record_exchange(plan, sent_at.elapsed());
         }
         drop(waiter_guards);
         drop(guards);

@@ -19,11 +19,42 @@ pub const SPIN_CAP: Duration = Duration::from_micros(400);
 /// Spins between two `yield_now` (lets a thread runnable on this CPU answer meanwhile).
 const SPINS_PER_YIELD: u32 = 256;
 
-/// The recent answer latency of one master, and whether spinning can pay off at all.
+/// Every this many exchanges, the way of waiting not preferred now is tried again (the
+/// host's speed drifts; what paid off a minute ago may not now).
+const EXPLORE_EVERY: u64 = 16;
+
+/// How one exchange waits for its answers (see [`AnswerLatency::plan`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct WaitPlan {
+    /// How long to spin before sleeping (zero: sleep at once).
+    spin: Duration,
+    /// Whether the measured time counts for spinning (else for sleeping).
+    spinning: bool,
+}
+
+impl WaitPlan {
+    /// Sleep at once (and measure nothing).
+    pub const SLEEP: WaitPlan = WaitPlan { spin: Duration::ZERO, spinning: false };
+}
+
+/// The recent answer latency of one master, and whether spinning pays off.
+///
+/// Spinning only helps where waking a sleeping thread costs more than the CPU the spin
+/// takes from the bus and the nodes; that depends on the host and drifts with its load.
+/// So both ways are measured (the caller's time from the requests to the last answer, a
+/// moving average each) and the faster one is used, the other tried every
+/// [`EXPLORE_EVERY`] exchanges.
 #[derive(Debug)]
 pub(crate) struct AnswerLatency {
-    /// Moving average, ns (0 = nothing measured yet).
+    /// Moving average of the bus latency (requests to the first answer's arrival), ns
+    /// (0 = nothing measured yet).
     average_ns: AtomicU64,
+    /// Moving averages of the caller's exchange time when spinning and when sleeping, ns
+    /// (0 = not tried yet).
+    spin_ns: AtomicU64,
+    sleep_ns: AtomicU64,
+    /// Exchanges planned.
+    exchanges: AtomicU64,
     /// A spin needs a second CPU to run the bus meanwhile.
     cpus: usize,
     /// Threads of this master spinning now (at most one fewer than the CPUs, so that
@@ -31,33 +62,65 @@ pub(crate) struct AnswerLatency {
     spinners: AtomicUsize,
 }
 
+/// Moves the moving average `avg` (0 = empty) by one sample `x`, weight 1/8.
+fn ewma(avg: &AtomicU64, x: Duration) {
+    let x = u64::try_from(x.as_nanos()).unwrap_or(u64::MAX).max(1);
+    let old = avg.load(Ordering::Relaxed);
+    let new = if old == 0 { x } else { old.saturating_mul(7).saturating_add(x) / 8 };
+    avg.store(new, Ordering::Relaxed);
+}
+
 impl AnswerLatency {
     /// Spinning is allowed unless the environment sets `MOTUS_SDO_SPIN=off` (a host
     /// whose CPUs are shared with other work may prefer to never spin).
     pub fn new() -> AnswerLatency {
         let off = std::env::var("MOTUS_SDO_SPIN").is_ok_and(|v| v.eq_ignore_ascii_case("off") || v == "0");
+        let cpus = if off { 1 } else { std::thread::available_parallelism().map_or(1, |n| n.get()) };
+        AnswerLatency::with_cpus(cpus)
+    }
+
+    fn with_cpus(cpus: usize) -> AnswerLatency {
         AnswerLatency {
             average_ns: AtomicU64::new(0),
-            cpus: if off { 1 } else { std::thread::available_parallelism().map_or(1, |n| n.get()) },
+            spin_ns: AtomicU64::new(0),
+            sleep_ns: AtomicU64::new(0),
+            exchanges: AtomicU64::new(0),
+            cpus,
             spinners: AtomicUsize::new(0),
         }
     }
 
-    /// Receives the answer to a request sent at `sent_at`: spinning for the budget when
-    /// a CPU is free for it, then asleep until `deadline`. Without a request just sent
-    /// (`None`), asleep only.
+    /// Decides how to wait for the exchange whose requests leave now.
+    pub fn plan(&self) -> WaitPlan {
+        let budget = self.spin_budget();
+        if budget.is_zero() {
+            return WaitPlan { spin: Duration::ZERO, spinning: false };
+        }
+        let (spin, sleep) = (self.spin_ns.load(Ordering::Relaxed), self.sleep_ns.load(Ordering::Relaxed));
+        let prefer_spin = match (spin, sleep) {
+            (0, _) => true,
+            (_, 0) => false,
+            (s, z) => s <= z,
+        };
+        let explore = self.exchanges.fetch_add(1, Ordering::Relaxed) % EXPLORE_EVERY == EXPLORE_EVERY - 1;
+        let spinning = prefer_spin != explore;
+        WaitPlan { spin: if spinning { budget } else { Duration::ZERO }, spinning }
+    }
+
+    /// Receives an answer of an exchange whose requests left at `sent_at`: spinning as
+    /// `plan` says when a CPU is free for it, then asleep until `deadline`.
     pub fn recv<T>(
         &self,
         rx: &Receiver<T>,
-        sent_at: Option<Instant>,
+        plan: WaitPlan,
+        sent_at: Instant,
         deadline: Instant,
     ) -> Result<T, RecvTimeoutError> {
-        let budget = self.spin_budget();
-        let Some(sent_at) = sent_at.filter(|_| !budget.is_zero()) else {
+        if plan.spin.is_zero() {
             return rx.recv_timeout(deadline.saturating_duration_since(Instant::now()));
-        };
+        }
         let spinning = self.spinners.fetch_add(1, Ordering::Relaxed);
-        let spin_until = if spinning + 1 < self.cpus { (sent_at + budget).min(deadline) } else { sent_at };
+        let spin_until = if spinning + 1 < self.cpus { (sent_at + plan.spin).min(deadline) } else { sent_at };
         let r = recv_spinning(rx, spin_until, deadline);
         self.spinners.fetch_sub(1, Ordering::Relaxed);
         r
@@ -69,12 +132,18 @@ impl AnswerLatency {
         spin_budget(avg, self.cpus)
     }
 
-    /// Records the time from a batch's requests to its first answer.
-    pub fn record(&self, latency: Duration) {
-        let x = u64::try_from(latency.as_nanos()).unwrap_or(u64::MAX);
-        let old = self.average_ns.load(Ordering::Relaxed);
-        let new = if old == 0 { x } else { (old.saturating_mul(7)).saturating_add(x) / 8 };
-        self.average_ns.store(new, Ordering::Relaxed);
+    /// Records the time from an exchange's requests to its first answer's arrival.
+    pub fn record_bus(&self, latency: Duration) {
+        ewma(&self.average_ns, latency);
+    }
+
+    /// Records the caller's time from an exchange's requests to its last answer, under
+    /// `plan` (exchanges that failed or timed out are not recorded).
+    pub fn record_exchange(&self, plan: WaitPlan, took: Duration) {
+        if self.spin_budget().is_zero() && !plan.spinning {
+            return;
+        }
+        ewma(if plan.spinning { &self.spin_ns } else { &self.sleep_ns }, took);
     }
 }
 
@@ -128,13 +197,39 @@ mod tests {
 
     #[test]
     fn the_average_follows_the_bus_and_stops_spinning_when_it_slows() {
-        let l = AnswerLatency { average_ns: AtomicU64::new(0), cpus: 2, spinners: AtomicUsize::new(0) };
-        l.record(Duration::from_micros(100));
+        let l = AnswerLatency::with_cpus(2);
+        assert!(!l.plan().spinning, "nothing measured yet");
+        l.record_bus(Duration::from_micros(100));
         assert_eq!(l.spin_budget(), Duration::from_micros(170));
         for _ in 0..30 {
-            l.record(Duration::from_millis(2));
+            l.record_bus(Duration::from_millis(2));
         }
         assert_eq!(l.spin_budget(), Duration::ZERO);
+        assert!(!l.plan().spinning);
+    }
+
+    #[test]
+    fn the_faster_way_of_waiting_is_used_and_the_other_tried_now_and_then() {
+        let us = Duration::from_micros;
+        let l = AnswerLatency::with_cpus(2);
+        l.record_bus(us(60));
+        // Untried: spinning first, then sleeping.
+        let first = l.plan();
+        assert!(first.spinning);
+        l.record_exchange(first, us(50));
+        let count = |l: &AnswerLatency, n: usize| (0..n).filter(|_| l.plan().spinning).count();
+        // Sleeping not tried yet: preferred is sleep after spin was measured.
+        let p = l.plan();
+        assert!(!p.spinning);
+        l.record_exchange(p, us(90));
+        // Spinning is faster: used, except every 16th exchange.
+        assert_eq!(count(&l, 160), 150);
+        // The host changes: sleeping becomes faster, and wins once measured.
+        for _ in 0..40 {
+            let p = l.plan();
+            l.record_exchange(p, if p.spinning { us(120) } else { us(40) });
+        }
+        assert_eq!(count(&l, 160), 10);
     }
 
     #[test]
