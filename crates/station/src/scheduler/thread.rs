@@ -125,21 +125,24 @@ impl Ctx<'_> {
 
     fn degrade(&mut self, reason: String) {
         tracing::error!(class = %self.class.name, %reason, "task class degraded: stopping its tasks");
-        for t in &mut self.class.tasks {
-            t.degrade();
-        }
+        // The state is published first, then the alarm raised, then the tasks told: whoever
+        // sees the alarm or a task's reaction reads the class as degraded.
+        let message = format!(
+            "task class {} degraded ({reason}): its tasks stopped; reset the alarms and resume",
+            self.class.name
+        );
         self.local.degradations += 1;
+        self.local.state = ClassState::Degraded { reason };
+        self.publish();
         self.alarms.raise(Alarm {
             code: AlarmCode::TaskDegraded,
             severity: AlarmSeverity::Error,
             source: self.source.clone(),
-            message: format!(
-                "task class {} degraded ({reason}): its tasks stopped; reset the alarms and resume",
-                self.class.name
-            ),
+            message,
         });
-        self.local.state = ClassState::Degraded { reason };
-        self.publish();
+        for t in &mut self.class.tasks {
+            t.degrade();
+        }
     }
 
     fn handle_requests(&mut self, release: &mut Instant) {
