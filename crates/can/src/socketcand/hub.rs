@@ -170,6 +170,14 @@ fn wall_clock() -> Duration {
     SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default()
 }
 
+/// When the first client with text waiting (and a socket not known to be full) may be
+/// written to: `(waiting, ready_at)` per client. A time already past is returned as is
+/// (the loop must not wait): the loop may have woken a little before a client's settle
+/// time ended, found it not ready, and must come back for it without another event.
+fn first_write(clients: impl Iterator<Item = (bool, Option<Instant>)>) -> Option<Instant> {
+    clients.filter(|(waiting, _)| *waiting).filter_map(|(_, ready_at)| ready_at).min()
+}
+
 /// The hub's thread: every socket, the bus model and the fan-out.
 struct EventLoop {
     poll: Poll,
@@ -228,13 +236,7 @@ impl EventLoop {
         if !self.again.is_empty() {
             return Some(Duration::ZERO);
         }
-        let settle = self
-            .sessions
-            .values()
-            .filter(|s| s.pending())
-            .filter_map(|s| s.ready_at)
-            .filter(|t| *t > now)
-            .min();
+        let settle = first_write(self.sessions.values().map(|s| (s.pending() && !s.want_write, s.ready_at)));
         let due = self.bus.as_ref().and_then(BusModel::next_due);
         let next = match (settle, due) {
             (Some(a), Some(b)) => Some(a.min(b)),
@@ -401,5 +403,26 @@ impl EventLoop {
         let _ = self.poll.registry().deregister(&mut s.stream);
         s.counters.connected.store(false, Ordering::Relaxed);
         let _ = s.stream.shutdown(std::net::Shutdown::Both);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_client_whose_settle_time_passed_is_written_at_once() {
+        let now = Instant::now();
+        let ms = Duration::from_millis;
+        // The loop woke just before the settle time ended; by the next turn it has passed.
+        assert_eq!(first_write([(true, Some(now - ms(1)))].into_iter()), Some(now - ms(1)));
+        assert_eq!(
+            first_write(
+                [(true, Some(now + ms(5))), (true, Some(now + ms(2))), (false, Some(now))].into_iter()
+            ),
+            Some(now + ms(2)),
+            "the earliest waiting client; one with nothing to write does not count"
+        );
+        assert_eq!(first_write([(true, None), (false, Some(now))].into_iter()), None, "nothing to wait for");
     }
 }
