@@ -287,6 +287,14 @@ fn upload_many_rate(master: &Master, nodes: &[u8], seconds: f64) -> (f64, u64, f
     (rate, errs, cpu * 1e6 / ok.max(1) as f64)
 }
 
+/// The python master's JSON line among its stdout lines.
+fn master_json(lines: &[String]) -> Option<serde_json::Value> {
+    lines
+        .iter()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .find(|v| v["role"] == "master")
+}
+
 /// (f) python-canopen's master with `nodes.len()` threads on `hub` for `seconds`:
 /// (uploads/s, CPU per upload in us), or the failure's output.
 fn python_concurrent_rate(
@@ -299,10 +307,7 @@ fn python_concurrent_rate(
     args.push("--nodes".into());
     args.push(nodes.iter().map(ToString::to_string).collect::<Vec<_>>().join(","));
     let (exited, lines, stderr) = Python::spawn(&args).finish(Duration::from_secs_f64(seconds + 30.0));
-    let json = lines
-        .iter()
-        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .find(|v| v["role"] == "master");
+    let json = master_json(&lines);
     json.as_ref()
         .and_then(|v| {
             let cpu_us = v["cpu_s"].as_f64()? * 1e6 / v["uploads"].as_f64()?.max(1.0);
@@ -412,10 +417,7 @@ fn main() {
     let eds_sim = eds_file(SIM_NODE);
     let py = Python::spawn(&script_args("master", &hub, SIM_NODE, eds_sim.path(), seconds));
     let (ok, lines, stderr) = py.finish(Duration::from_secs_f64(seconds + 30.0));
-    let c_json = lines
-        .iter()
-        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .find(|v| v["role"] == "master");
+    let c_json = master_json(&lines);
     let c_rate = c_json.as_ref().and_then(|v| v["rate_per_s"].as_f64());
     match (ok, &c_json, c_rate) {
         (true, Some(v), Some(rate)) => {

@@ -74,18 +74,16 @@ impl Inner {
         let ctx = || format!("SDO transfer with node {node} on 0x{index:04X}:{sub:02X}");
         self.send(&first, ctx)?;
         // Each request is answered once: its answer measures the bus and the way of
-        // waiting (see `spin_wait`).
-        let mut sent_at = Some(Instant::now());
-        let mut plan = self.sdo_latency.plan();
+        // waiting (see `spin_wait`). Only a request still unanswered is spun for.
+        let mut unanswered = Some((Instant::now(), self.sdo_latency.plan()));
         loop {
             let deadline = t.deadline().unwrap_or_else(Instant::now);
-            // Only a request just sent is spun for.
-            let wait = if sent_at.is_some() { plan } else { WaitPlan::SLEEP };
-            let step = match self.sdo_latency.recv(&rx, wait, sent_at.unwrap_or(deadline), deadline) {
+            let (sent_at, plan) = unanswered.unwrap_or((deadline, WaitPlan::SLEEP));
+            let step = match self.sdo_latency.recv(&rx, plan, sent_at, deadline) {
                 Ok(r) => {
-                    if let Some(at) = sent_at.take() {
-                        self.sdo_latency.record_bus(r.at.saturating_duration_since(at));
-                        self.sdo_latency.record_exchange(plan, at.elapsed());
+                    if unanswered.take().is_some() {
+                        self.sdo_latency.record_bus(r.at.saturating_duration_since(sent_at));
+                        self.sdo_latency.record_exchange(plan, sent_at.elapsed());
                     }
                     t.on_frame(&r.frame, Instant::now())
                 }
@@ -96,8 +94,7 @@ impl Inner {
                 SdoStep::Wait => {}
                 SdoStep::Send(f) => {
                     self.send(&f, ctx)?;
-                    sent_at = Some(Instant::now());
-                    plan = self.sdo_latency.plan();
+                    unanswered = Some((Instant::now(), self.sdo_latency.plan()));
                 }
                 SdoStep::Done(data) => return Ok(data),
                 SdoStep::Failed { abort, error } => {
