@@ -17,7 +17,7 @@
 //!
 //! # Interpolation
 //! [`SampleHistory::position_at`] fits a quadratic in time, by weighted least squares, to
-//! the two samples around `t` and up to one more on each side (a local regression), and
+//! the two samples around `t` and up to two more on each side (a local regression), and
 //! evaluates it at `t`. Each sample weighs by how well its instant is known: a round trip
 //! longer than the quickest one in the window means the host held the exchange up
 //! somewhere (the scheduler thread descheduled before the request or after the answer), so
@@ -25,8 +25,13 @@
 //! `1 / (σ0² + (excess / 2)²)` with σ0 = 0.5 ms, the regulator's quantisation. A slowed
 //! sample thus barely moves the fit, while the quadratic follows the curvature that a
 //! straight line across the gap it leaves would cut. With fewer than four samples in
-//! reach the two around `t` are interpolated linearly. After the newest sample it
-//! extrapolates from the last two for at most a small margin, and it refuses anything else
+//! reach the two around `t` are interpolated linearly. A sample held up by more than
+//! [`SampleHistory::max_delay`] (3 ms by default) is not used at all: its instant is too
+//! uncertain, and when several such samples come in a row (the host stalled) no weighting
+//! can recover the time between them, so it counts as a missed sample, and a time only
+//! reachable through such samples is refused ([`WhereError::Delayed`]) rather than
+//! answered wrongly. After the newest sample it
+//! extrapolates from the newest two for at most a small margin, and it refuses anything else
 //! (older than the history, newer than the margin, or inside a gap of missed samples
 //! longer than the allowed gap; the fit never reaches across such a gap either).
 //!
@@ -115,6 +120,18 @@ pub enum WhereError {
         /// The extrapolation margin.
         margin: Duration,
     },
+    /// Only samples held up by the host or the line are near the time: when their values
+    /// were latched is too uncertain to place the axis there.
+    #[error(
+        "the position samples around that time were held up by {delay:?} (more than {max_delay:?}): \
+         their timing is too uncertain"
+    )]
+    Delayed {
+        /// How much longer than an unhindered exchange the worst of them took.
+        delay: Duration,
+        /// The longest hold-up a sample may have to be used.
+        max_delay: Duration,
+    },
     /// Inside a gap of missed samples too long to interpolate across.
     #[error("time falls in a gap of {gap:?} without samples (at most {max_gap:?} is interpolated)")]
     Gap {
@@ -135,14 +152,38 @@ pub struct SampleHistory {
     pub margin: Duration,
     /// The longest gap between two samples interpolated across.
     pub max_gap: Duration,
+    /// A sample whose exchange took longer than an unhindered one nearby (the lower
+    /// quartile of the round trips around it) by more than this
+    /// is not used: it counts as missed (default [`DEFAULT_MAX_DELAY`]).
+    pub max_delay: Duration,
 }
+
+/// Default [`SampleHistory::max_delay`]: a sample's instant is uncertain by half its
+/// hold-up, 1.5 ms at this bound, i.e. 0.045 deg at the pan-tilt head's 30 deg/s.
+pub const DEFAULT_MAX_DELAY: Duration = Duration::from_millis(3);
+
+/// Samples on each side of a time whose round trips tell an unhindered one.
+const QUICKEST_REACH: usize = 32;
 
 impl SampleHistory {
     /// An empty history of at most `capacity` samples (at least 2).
     #[must_use]
     pub fn new(capacity: usize, margin: Duration, max_gap: Duration) -> Self {
         let capacity = capacity.max(2);
-        SampleHistory { samples: VecDeque::with_capacity(capacity), capacity, margin, max_gap }
+        SampleHistory {
+            samples: VecDeque::with_capacity(capacity),
+            capacity,
+            margin,
+            max_gap,
+            max_delay: DEFAULT_MAX_DELAY,
+        }
+    }
+
+    /// The same history with [`SampleHistory::max_delay`] set.
+    #[must_use]
+    pub fn with_max_delay(mut self, max_delay: Duration) -> Self {
+        self.max_delay = max_delay;
+        self
     }
 
     /// Adds a sample; samples must come in order of [`PositionSample::at`] (older ones
@@ -188,71 +229,122 @@ impl SampleHistory {
         velocity(a, b)
     }
 
-    /// The position (counts, fractional) at `t`: linear between the samples around it,
-    /// extrapolated from the last two for at most [`SampleHistory::margin`].
+    /// The position (counts, fractional) at `t`: fitted to the trusted samples around it
+    /// (see the module documentation), extrapolated from the newest trusted one for at most
+    /// [`SampleHistory::margin`].
     ///
     /// # Errors
-    /// [`WhereError`] when `t` is outside the history (plus margin) or in a long gap.
+    /// [`WhereError`] when `t` is outside the history (plus margin), in a long gap, or only
+    /// reachable through samples held up by more than [`SampleHistory::max_delay`].
     pub fn position_at(&self, t: Instant) -> Result<f64, WhereError> {
-        let (Some(first), Some(last)) = (self.samples.front(), self.samples.back()) else {
+        let Some(first) = self.samples.front() else {
             return Err(WhereError::NoSamples);
         };
         if t < first.at() {
             return Err(WhereError::TooOld { before: first.at() - t });
         }
-        if t >= last.at() {
-            let after = t - last.at();
+        // Samples at or before `t` are 0..i, after it i...
+        let i = self.samples.partition_point(|s| s.at() <= t);
+        let unhindered = self.unhindered_around(i);
+        let delay = |s: &PositionSample| s.round_trip().saturating_sub(unhindered);
+        let trusted = |j: &usize| self.samples.get(*j).is_some_and(|s| delay(s) <= self.max_delay);
+        // The worst delay among the samples skipped between `from` and `to` (exclusive).
+        let held_up = |from: usize, to: usize| {
+            (from..to).filter_map(|j| self.samples.get(j)).map(delay).max().unwrap_or_default()
+        };
+        let Some(ia) = (0..i).rev().find(trusted) else {
+            return Err(WhereError::Delayed { delay: held_up(0, i), max_delay: self.max_delay });
+        };
+        let a = self.samples.get(ia).ok_or(WhereError::NoSamples)?;
+        let Some(ib) = (i..self.samples.len()).find(trusted) else {
+            let after = t - a.at();
             if after > self.margin {
+                let skipped = held_up(ia + 1, self.samples.len());
+                if skipped > self.max_delay {
+                    return Err(WhereError::Delayed { delay: skipped, max_delay: self.max_delay });
+                }
                 return Err(WhereError::TooNew { after, margin: self.margin });
             }
-            let v = self.velocity().unwrap_or(0.0);
-            return Ok(last.counts as f64 + v * after.as_secs_f64());
-        }
-        // first.at() <= t < last.at(): the first sample after t exists and is not the first.
-        let i = self.samples.partition_point(|s| s.at() <= t);
-        let (Some(a), Some(b)) = (i.checked_sub(1).and_then(|j| self.samples.get(j)), self.samples.get(i))
-        else {
-            return Err(WhereError::NoSamples);
+            // The velocity over the newest two trusted samples; without a trusted one before
+            // `a` only a lone first sample may stand for a standstill.
+            let before = (0..ia).rev().find(trusted).and_then(|j| self.samples.get(j));
+            let v = match before.filter(|p| a.at().saturating_duration_since(p.at()) <= self.max_gap) {
+                Some(p) => velocity(p, a).unwrap_or(0.0),
+                None if ia == 0 => 0.0,
+                None => {
+                    let delay = held_up(0, ia).max(held_up(ia + 1, self.samples.len()));
+                    if delay > self.max_delay {
+                        return Err(WhereError::Delayed { delay, max_delay: self.max_delay });
+                    }
+                    let gap = before.map_or(Duration::ZERO, |p| a.at().saturating_duration_since(p.at()));
+                    return Err(WhereError::Gap { gap, max_gap: self.max_gap });
+                }
+            };
+            return Ok(a.counts as f64 + v * after.as_secs_f64());
         };
+        let b = self.samples.get(ib).ok_or(WhereError::NoSamples)?;
         let gap = b.at() - a.at();
         if gap > self.max_gap {
+            let skipped = held_up(ia + 1, ib);
+            if skipped > self.max_delay {
+                return Err(WhereError::Delayed { delay: skipped, max_delay: self.max_delay });
+            }
             return Err(WhereError::Gap { gap, max_gap: self.max_gap });
         }
-        if let Some(fitted) = self.local_fit(i, t) {
+        if let Some(fitted) = self.local_fit(ia, ib, &trusted, t) {
             return Ok(fitted);
         }
         let f = (t - a.at()).as_secs_f64() / gap.as_secs_f64().max(f64::MIN_POSITIVE);
         Ok(a.counts as f64 + f * (b.counts - a.counts) as f64)
     }
 
-    /// The weighted quadratic fit of the module documentation around the bracket
-    /// `(i - 1, i)`; `None` with fewer than four samples in reach or a degenerate system.
-    fn local_fit(&self, i: usize, t: Instant) -> Option<f64> {
-        let within_gap = |older: usize| -> bool {
-            match (self.samples.get(older), self.samples.get(older + 1)) {
-                (Some(p), Some(q)) => q.at().saturating_duration_since(p.at()) <= self.max_gap,
-                _ => false,
+    /// The round trip of an unhindered exchange near index `i`: the lower quartile of the
+    /// round trips nearby (robust against a sample too quick to be true, such as an answer
+    /// taken for the next request's).
+    fn unhindered_around(&self, i: usize) -> Duration {
+        let lo = i.saturating_sub(QUICKEST_REACH);
+        let hi = (i + QUICKEST_REACH).min(self.samples.len());
+        let mut trips = [Duration::ZERO; 2 * QUICKEST_REACH];
+        let mut n = 0;
+        for (slot, s) in trips.iter_mut().zip(self.samples.range(lo..hi)) {
+            *slot = s.round_trip();
+            n += 1;
+        }
+        match trips.get_mut(..n) {
+            Some(trips) if n > 0 => *trips.select_nth_unstable(n / 4).1,
+            _ => Duration::ZERO,
+        }
+    }
+
+    /// The weighted quadratic fit of the module documentation around the trusted bracket
+    /// `(ia, ib)`, over up to [`FIT_REACH`] more trusted samples on each side;  `None` with
+    /// fewer than four samples in reach or a degenerate system.
+    fn local_fit(&self, ia: usize, ib: usize, trusted: &dyn Fn(&usize) -> bool, t: Instant) -> Option<f64> {
+        let a = self.samples.get(ia)?;
+        let b = self.samples.get(ib)?;
+        let mut window = vec![*a, *b];
+        // Walks away from the bracket, one trusted sample after another, as long as each
+        // step stays within the allowed gap.
+        let mut extend = |mut edge: PositionSample, indices: &mut dyn Iterator<Item = usize>| {
+            for p in indices.filter(trusted).filter_map(|j| self.samples.get(j)).take(FIT_REACH) {
+                let step = if p.at() < edge.at() { edge.at() - p.at() } else { p.at() - edge.at() };
+                if step > self.max_gap {
+                    break;
+                }
+                window.push(*p);
+                edge = *p;
             }
         };
-        let mut lo = i.checked_sub(1)?;
-        let mut hi = i;
-        for _ in 0..FIT_REACH {
-            if lo > 0 && within_gap(lo - 1) {
-                lo -= 1;
-            }
-            if hi + 1 < self.samples.len() && within_gap(hi) {
-                hi += 1;
-            }
-        }
-        let window = self.samples.range(lo..=hi);
+        extend(*a, &mut (0..ia).rev());
+        extend(*b, &mut (ib + 1..self.samples.len()));
         if window.len() < 4 {
             return None;
         }
-        let quickest = window.clone().map(PositionSample::round_trip).min()?;
-        let origin = self.samples.get(i - 1)?.counts;
+        let quickest = window.iter().map(PositionSample::round_trip).min()?;
+        let origin = a.counts;
         // Normal equations of y = c0 + c1 τ + c2 τ², τ in ms from t, y in counts from origin.
         let (mut s, mut r) = ([0.0f64; 5], [0.0f64; 3]);
-        for p in window {
+        for p in &window {
             let tau = signed_ms(p.at(), t);
             let excess = (p.round_trip() - quickest).as_secs_f64() * 1000.0;
             let w = 1.0 / (FIT_FLOOR_MS * FIT_FLOOR_MS + 0.25 * excess * excess);
@@ -489,6 +581,72 @@ mod tests {
             let got = h.position_at(t0 + Duration::from_secs_f64(q / 1000.0)).unwrap();
             // Unweighted, the slowed sample would put its value 3 ms late: ~100 counts off.
             assert!((got - x(q)).abs() < 8.0, "at {q} ms: fit {got}, truth {}", x(q));
+        }
+    }
+
+    /// An exchange like [`exchange`], answered `late_ms` late (the host held it up).
+    fn held(t0: Instant, at_ms: f64, late_ms: f64, x: impl Fn(f64) -> f64) -> PositionSample {
+        let s = exchange(t0, at_ms, 5.5, x);
+        PositionSample::new(
+            s.request_at,
+            s.reply_at + Duration::from_secs_f64(late_ms / 1000.0),
+            s.counts,
+            Duration::ZERO,
+        )
+    }
+
+    #[test]
+    fn a_held_up_sample_counts_as_missed() {
+        // 30 counts/ms with curvature, samples every 15 ms.
+        let x = |t: f64| 30.0 * t + 0.2 * t * t;
+        let t0 = Instant::now();
+        let mut h = SampleHistory::new(64, Duration::from_millis(10), Duration::from_millis(40));
+        for k in 0..6u32 {
+            h.push(exchange(t0, 15.0 * f64::from(k), 5.5, x));
+        }
+        // Two exchanges in a row held up 8 ms (the host stalled): their values are 4 ms
+        // older than their midpoints.
+        h.push(held(t0, 90.0, 8.0, x));
+        h.push(held(t0, 105.0, 8.0, x));
+        // Extrapolating from them would be 120 counts off; the newest trusted sample is
+        // 25 ms back, beyond the 10 ms margin: refused, naming the hold-up.
+        let q = t0 + Duration::from_millis(114);
+        let refused = h.position_at(q);
+        assert!(
+            matches!(refused, Err(WhereError::Delayed { delay, max_delay })
+                if delay >= Duration::from_millis(7) && max_delay == DEFAULT_MAX_DELAY),
+            "expected a refusal naming the hold-up, got {refused:?}"
+        );
+        // Between them too: the trusted neighbours are 45 ms apart, beyond max_gap.
+        assert!(matches!(h.position_at(t0 + Duration::from_millis(96)), Err(WhereError::Delayed { .. })));
+        // One held-up sample among good ones: the time around it is bridged by its trusted
+        // neighbours (30 ms apart).
+        let mut g = SampleHistory::new(64, Duration::from_millis(10), Duration::from_millis(40));
+        for k in 0..10u32 {
+            let at = 15.0 * f64::from(k);
+            g.push(if k == 6 { held(t0, at, 8.0, x) } else { exchange(t0, at, 5.5, x) });
+        }
+        for q in [80.0, 88.0, 97.0, 103.0] {
+            let got = g.position_at(t0 + Duration::from_secs_f64(q / 1000.0)).unwrap();
+            assert!((got - x(q)).abs() < 2.0, "at {q} ms: {got}, truth {}", x(q));
+        }
+        // With no limit, the held-up sample is used (weighted down): a looser answer.
+        let loose = g.clone().with_max_delay(Duration::MAX);
+        assert!(loose.position_at(t0 + Duration::from_millis(97)).is_ok());
+    }
+
+    #[test]
+    fn one_exchange_too_quick_to_be_true_does_not_make_the_others_held_up() {
+        let x = |t: f64| 30.0 * t;
+        let t0 = Instant::now();
+        let mut h = SampleHistory::new(64, Duration::from_millis(10), Duration::from_millis(40));
+        for k in 0..8u32 {
+            let at = 15.0 * f64::from(k);
+            h.push(exchange(t0, at, if k == 4 { 0.5 } else { 5.5 }, x));
+        }
+        for q in [50.0, 70.0, 100.0, 110.0] {
+            let got = h.position_at(t0 + Duration::from_secs_f64(q / 1000.0)).unwrap();
+            assert!((got - x(q)).abs() < 1.0, "at {q} ms: {got}");
         }
     }
 

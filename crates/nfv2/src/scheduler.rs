@@ -70,6 +70,10 @@ pub struct SchedulerConfig {
     /// at 15 ms: linear interpolation across 40 ms of a 120 deg/s² motion is off by at
     /// most 0.025 deg).
     pub max_gap: Duration,
+    /// A position sample whose exchange was held up (by the host or the line) by more
+    /// than this, beyond an unhindered one, is not used for "position at t" (default
+    /// 3 ms; see [`crate::samples::SampleHistory::max_delay`]).
+    pub where_max_delay: Duration,
     /// Position gain of streaming, 1/s (default 8).
     pub stream_gain: f64,
     /// How long a command may wait for its acknowledgement (default 1 s).
@@ -91,6 +95,7 @@ impl Default for SchedulerConfig {
             history: 8192,
             where_margin: Duration::from_millis(10),
             max_gap: Duration::from_millis(40),
+            where_max_delay: crate::samples::DEFAULT_MAX_DELAY,
             stream_gain: 8.0,
             confirm_timeout: Duration::from_secs(1),
             silence: Duration::from_millis(500),

@@ -96,7 +96,8 @@ impl DriveRuntime {
             rev,
             regs: Registers::default(),
             intent: Intent::Unknown,
-            history: SampleHistory::new(sc.history, sc.where_margin, sc.max_gap),
+            history: SampleHistory::new(sc.history, sc.where_margin, sc.max_gap)
+                .with_max_delay(sc.where_max_delay),
             gate: Gate::default(),
             status: StatusFilter::default(),
             current_ma: None,
