@@ -175,3 +175,43 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    /// The parser's iterator (which parses in place) yields exactly what its text API
+    /// followed by the lenient parse yields, and counts the same garbage.
+    #[test]
+    fn iterator_equals_text_then_parse(chunks in proptest::collection::vec(
+        proptest::collection::vec(prop_oneof![Just(b'<'), Just(b'>'), Just(b' '), any::<u8>(),
+            Just(b's'), Just(b'f'), Just(b'1')], 0..48), 0..12)) {
+        let (mut fast, mut slow) = (StreamParser::new(), StreamParser::new());
+        for chunk in &chunks {
+            fast.push(chunk);
+            slow.push(chunk);
+            let a: Vec<Message> = fast.by_ref().collect();
+            let b: Vec<Message> = std::iter::from_fn(|| slow.next_text()).map(|t| Message::parse_lenient(&t)).collect();
+            prop_assert_eq!(a, b);
+            prop_assert_eq!(fast.garbage_bytes(), slow.garbage_bytes());
+            prop_assert_eq!(fast.buffered(), slow.buffered());
+        }
+    }
+
+    /// Hexadecimal bytes are written as `{:02X}` (frames) and `{:x}` (sends) would.
+    #[test]
+    fn hex_matches_core_fmt(frame in arb_frame()) {
+        let send = Message::Send(frame.clone()).format();
+        let mut want = String::from("< send ");
+        want.push_str(&if frame.is_extended() { format!("{:08X}", frame.id()) } else { format!("{:03X}", frame.id()) });
+        want.push_str(&format!(" {:X} ", frame.dlc()));
+        for b in frame.data() {
+            want.push_str(&format!("{b:x} "));
+        }
+        if frame.data().is_empty() {
+            want.push(' ');
+        }
+        want.push('>');
+        prop_assert_eq!(send, want);
+        let text = Message::Frame { frame: frame.clone(), timestamp: std::time::Duration::ZERO }.format();
+        let hex: String = frame.data().iter().map(|b| format!("{b:02X}")).collect();
+        prop_assert!(text.ends_with(&format!(" 0.000000 {hex} >")), "{}", text);
+    }
+}

@@ -16,6 +16,10 @@
 //! each pair runs a timed loop of the same length as the python master's, and the rates
 //! and the ratios (target: at least 10) are printed as `RATE ...` and `RATIO ...` lines.
 //! `BENCH_QUICK=1` shortens the timed loops from 3 s to 1.5 s.
+//!
+//! Two floors come first: a raw frame echoed through the hub between two `SocketcandBus`
+//! clients, and the same with a client that spins on a non-blocking socket, no CANopen and
+//! no receive thread: the most any master doing one transfer at a time can reach here.
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
 
 use std::io::{BufRead, BufReader, Read};
@@ -238,6 +242,67 @@ fn hub_floor(c: &mut Criterion, seconds: f64) -> f64 {
     rate
 }
 
+/// The ceiling of any master doing one transfer at a time on this bus: a client with no
+/// CANopen and no receive thread, which spins on a non-blocking socket, sends the raw
+/// request text through the hub to a blocking echo client (waiting as the simulator does)
+/// and waits for the echo. No master, however fast, completes exchanges quicker.
+fn spinning_floor(seconds: f64) -> f64 {
+    use std::io::Write;
+    let hub = start_hub();
+    let echo_bus = connect(&hub);
+    let mut raw = std::net::TcpStream::connect(hub.local_addr()).unwrap();
+    raw.set_nodelay(true).unwrap();
+    let mut text = String::new();
+    let mut buf = [0u8; 4096];
+    let mut expect = |raw: &mut std::net::TcpStream, text: &mut String, want: &str| {
+        while !text.contains(want) {
+            let n = raw.read(&mut buf).unwrap();
+            assert!(n > 0, "hub closed during the handshake");
+            text.push_str(&String::from_utf8_lossy(&buf[..n]));
+        }
+        text.clear();
+    };
+    expect(&mut raw, &mut text, "< hi >");
+    raw.write_all(b"< open can0 >").unwrap();
+    expect(&mut raw, &mut text, "< ok >");
+    raw.write_all(b"< rawmode >").unwrap();
+    expect(&mut raw, &mut text, "< ok >");
+    let echo = std::thread::spawn(move || loop {
+        let Ok(Some(r)) = echo_bus.recv(Duration::from_secs(5)) else { return };
+        if r.frame.id() == 0x7FF {
+            return;
+        }
+        echo_bus.send(&CanFrame::new(r.frame.id() + 0x80, r.frame.data()).unwrap()).unwrap();
+    });
+    std::thread::sleep(SETTLE * 2);
+    raw.set_nonblocking(true).unwrap();
+    let mut buf = [0u8; 4096];
+    let start = Instant::now();
+    let until = start + Duration::from_secs_f64(seconds);
+    let mut n = 0u64;
+    while Instant::now() < until {
+        raw.write_all(b"< send 602 8 40 41 60 00 00 00 00 00 >").unwrap();
+        loop {
+            match raw.read(&mut buf) {
+                Ok(k) if buf[..k].contains(&b'>') => break,
+                Ok(0) => panic!("hub closed"),
+                Ok(_) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => std::hint::spin_loop(),
+                Err(e) => panic!("{e}"),
+            }
+        }
+        n += 1;
+    }
+    let rate = n as f64 / start.elapsed().as_secs_f64();
+    println!(
+        "RATE floor (spinning raw client, blocking echo client): {rate:.0} round trips/s ({n} in {seconds} s)"
+    );
+    raw.set_nonblocking(false).unwrap();
+    raw.write_all(b"< send 7FF 0  >").unwrap();
+    let _ = echo.join();
+    rate
+}
+
 /// CPU time (user + system) consumed so far by this process's threads whose name starts
 /// with `prefix`, and by the calling thread (from `/proc/self/task/*/schedstat`, ns).
 fn thread_cpu(prefix: &str) -> Duration {
@@ -392,6 +457,7 @@ fn main() {
     let mut c = Criterion::default().configure_from_args();
     let seconds = if std::env::var_os("BENCH_QUICK").is_some() { 1.5 } else { 3.0 };
     let floor = hub_floor(&mut c, seconds);
+    let spin_floor = spinning_floor(seconds);
 
     // (a) and (c): one hub with Motus's simulated drive at node 2.
     let hub = start_hub();
@@ -437,6 +503,12 @@ fn main() {
                  (a ratio near 1 means the bus, not the master, sets the rate)",
                 rate / floor,
                 a_rate / floor
+            );
+            println!(
+                "RATIO ceiling one transfer at a time: spinning raw client / (c) = {:.1}x \
+                 (no master doing one transfer at a time exceeds this on this bus; (a) reached {:.0} % of it)",
+                spin_floor / rate,
+                100.0 * a_rate / spin_floor
             );
         }
         _ => println!(

@@ -199,9 +199,12 @@ impl Message {
             Message::Send(frame) => {
                 out.push_str("< send ");
                 push_id(out, frame);
-                let _ = write!(out, " {:X} ", frame.dlc());
+                out.push(' ');
+                push_hex(out, frame.dlc(), HEX_UPPER, false);
+                out.push(' ');
                 for b in frame.data() {
-                    let _ = write!(out, "{b:x} ");
+                    push_hex(out, *b, HEX_LOWER, false);
+                    out.push(' ');
                 }
                 if frame.data().is_empty() {
                     // `< send 080 0  >`: the space after the DLC, then the one before `>`.
@@ -214,7 +217,7 @@ impl Message {
                 push_id(out, frame);
                 let _ = write!(out, " {}.{:06} ", timestamp.as_secs(), timestamp.subsec_micros());
                 for b in frame.data() {
-                    let _ = write!(out, "{b:02X}");
+                    push_hex(out, *b, HEX_UPPER, true);
                 }
                 // Always a space before `>`: an empty frame ends with two spaces.
                 out.push_str(" >");
@@ -234,6 +237,19 @@ impl Message {
         self.format_into(&mut out);
         out
     }
+}
+
+const HEX_UPPER: &[u8; 16] = b"0123456789ABCDEF";
+const HEX_LOWER: &[u8; 16] = b"0123456789abcdef";
+
+/// Appends `b` in hexadecimal: two digits with `pad`, else without a leading zero (what
+/// `{:02X}` and `{:x}` write, without going through `core::fmt` for every byte).
+fn push_hex(out: &mut String, b: u8, digits: &[u8; 16], pad: bool) {
+    let digit = |nibble: u8| char::from(digits.get(usize::from(nibble & 0xF)).copied().unwrap_or(b'0'));
+    if pad || b > 0xF {
+        out.push(digit(b >> 4));
+    }
+    out.push(digit(b));
 }
 
 fn push_id(out: &mut String, frame: &CanFrame) {
@@ -312,7 +328,31 @@ impl Iterator for StreamParser {
     type Item = Message;
 
     /// The next complete message, typed leniently (malformed -> [`Message::Unknown`]).
+    /// The same as [`StreamParser::next_text`] then [`Message::parse_lenient`], without
+    /// copying the text when it is valid UTF-8 (the hot path of every socketcand link).
     fn next(&mut self) -> Option<Message> {
-        self.next_text().map(|t| Message::parse_lenient(&t))
+        loop {
+            let close = self.buf.iter().position(|&b| b == b'>')?;
+            let head = self.buf.get(..close).unwrap_or(&[]);
+            let open = head.iter().rposition(|&b| b == b'<');
+            let consumed_garbage = open.unwrap_or(close + 1);
+            self.garbage += consumed_garbage as u64;
+            let message = match open.and_then(|o| head.get(o + 1..)) {
+                Some(t) if t.len() <= MAX_MESSAGE => Some(match std::str::from_utf8(t) {
+                    Ok(text) => Message::parse_lenient(text),
+                    Err(_) => Message::parse_lenient(&String::from_utf8_lossy(t)),
+                }),
+                Some(_) => {
+                    self.garbage += (close + 1 - consumed_garbage) as u64;
+                    None
+                }
+                None => None,
+            };
+            self.buf.drain(..=close);
+            self.trim();
+            if message.is_some() {
+                return message;
+            }
+        }
     }
 }
