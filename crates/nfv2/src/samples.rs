@@ -30,10 +30,10 @@
 //! uncertain, and when several such samples come in a row (the host stalled) no weighting
 //! can recover the time between them, so it counts as a missed sample, and a time only
 //! reachable through such samples is refused ([`WhereError::Delayed`]) rather than
-//! answered wrongly. After the newest sample it
-//! extrapolates from the newest two for at most a small margin, and it refuses anything else
-//! (older than the history, newer than the margin, or inside a gap of missed samples
-//! longer than the allowed gap; the fit never reaches across such a gap either).
+//! answered wrongly. After the newest sample it extrapolates from the newest two trusted
+//! ones for at most a small margin, and it refuses anything else (older than the history,
+//! newer than the margin, or inside a gap of missed samples longer than the allowed gap;
+//! the fit never reaches across such a gap either).
 //!
 //! # Plausibility
 //! The NFv2 CRC-8 misses some single-byte corruptions, so [`Gate`] accepts a position only
@@ -153,8 +153,8 @@ pub struct SampleHistory {
     /// The longest gap between two samples interpolated across.
     pub max_gap: Duration,
     /// A sample whose exchange took longer than an unhindered one nearby (the lower
-    /// quartile of the round trips around it) by more than this
-    /// is not used: it counts as missed (default [`DEFAULT_MAX_DELAY`]).
+    /// quartile of the round trips around it) by more than this is not used: it counts as
+    /// missed (default [`DEFAULT_MAX_DELAY`]).
     pub max_delay: Duration,
 }
 
@@ -163,7 +163,7 @@ pub struct SampleHistory {
 pub const DEFAULT_MAX_DELAY: Duration = Duration::from_millis(3);
 
 /// Samples on each side of a time whose round trips tell an unhindered one.
-const QUICKEST_REACH: usize = 32;
+const UNHINDERED_REACH: usize = 32;
 
 impl SampleHistory {
     /// An empty history of at most `capacity` samples (at least 2).
@@ -252,6 +252,14 @@ impl SampleHistory {
         let held_up = |from: usize, to: usize| {
             (from..to).filter_map(|j| self.samples.get(j)).map(delay).max().unwrap_or_default()
         };
+        // A refusal: naming the hold-up if samples were skipped for it, else `otherwise`.
+        let refuse = |skipped: Duration, otherwise: WhereError| {
+            Err(if skipped > self.max_delay {
+                WhereError::Delayed { delay: skipped, max_delay: self.max_delay }
+            } else {
+                otherwise
+            })
+        };
         let Some(ia) = (0..i).rev().find(trusted) else {
             return Err(WhereError::Delayed { delay: held_up(0, i), max_delay: self.max_delay });
         };
@@ -259,11 +267,10 @@ impl SampleHistory {
         let Some(ib) = (i..self.samples.len()).find(trusted) else {
             let after = t - a.at();
             if after > self.margin {
-                let skipped = held_up(ia + 1, self.samples.len());
-                if skipped > self.max_delay {
-                    return Err(WhereError::Delayed { delay: skipped, max_delay: self.max_delay });
-                }
-                return Err(WhereError::TooNew { after, margin: self.margin });
+                return refuse(
+                    held_up(ia + 1, self.samples.len()),
+                    WhereError::TooNew { after, margin: self.margin },
+                );
             }
             // The velocity over the newest two trusted samples; without a trusted one before
             // `a` only a lone first sample may stand for a standstill.
@@ -272,12 +279,9 @@ impl SampleHistory {
                 Some(p) => velocity(p, a).unwrap_or(0.0),
                 None if ia == 0 => 0.0,
                 None => {
-                    let delay = held_up(0, ia).max(held_up(ia + 1, self.samples.len()));
-                    if delay > self.max_delay {
-                        return Err(WhereError::Delayed { delay, max_delay: self.max_delay });
-                    }
+                    let skipped = held_up(0, ia).max(held_up(ia + 1, self.samples.len()));
                     let gap = before.map_or(Duration::ZERO, |p| a.at().saturating_duration_since(p.at()));
-                    return Err(WhereError::Gap { gap, max_gap: self.max_gap });
+                    return refuse(skipped, WhereError::Gap { gap, max_gap: self.max_gap });
                 }
             };
             return Ok(a.counts as f64 + v * after.as_secs_f64());
@@ -285,11 +289,7 @@ impl SampleHistory {
         let b = self.samples.get(ib).ok_or(WhereError::NoSamples)?;
         let gap = b.at() - a.at();
         if gap > self.max_gap {
-            let skipped = held_up(ia + 1, ib);
-            if skipped > self.max_delay {
-                return Err(WhereError::Delayed { delay: skipped, max_delay: self.max_delay });
-            }
-            return Err(WhereError::Gap { gap, max_gap: self.max_gap });
+            return refuse(held_up(ia + 1, ib), WhereError::Gap { gap, max_gap: self.max_gap });
         }
         if let Some(fitted) = self.local_fit(ia, ib, &trusted, t) {
             return Ok(fitted);
@@ -302,9 +302,9 @@ impl SampleHistory {
     /// round trips nearby (robust against a sample too quick to be true, such as an answer
     /// taken for the next request's).
     fn unhindered_around(&self, i: usize) -> Duration {
-        let lo = i.saturating_sub(QUICKEST_REACH);
-        let hi = (i + QUICKEST_REACH).min(self.samples.len());
-        let mut trips = [Duration::ZERO; 2 * QUICKEST_REACH];
+        let lo = i.saturating_sub(UNHINDERED_REACH);
+        let hi = (i + UNHINDERED_REACH).min(self.samples.len());
+        let mut trips = [Duration::ZERO; 2 * UNHINDERED_REACH];
         let mut n = 0;
         for (slot, s) in trips.iter_mut().zip(self.samples.range(lo..hi)) {
             *slot = s.round_trip();
@@ -317,7 +317,7 @@ impl SampleHistory {
     }
 
     /// The weighted quadratic fit of the module documentation around the trusted bracket
-    /// `(ia, ib)`, over up to [`FIT_REACH`] more trusted samples on each side;  `None` with
+    /// `(ia, ib)`, over up to [`FIT_REACH`] more trusted samples on each side; `None` with
     /// fewer than four samples in reach or a degenerate system.
     fn local_fit(&self, ia: usize, ib: usize, trusted: &dyn Fn(&usize) -> bool, t: Instant) -> Option<f64> {
         let a = self.samples.get(ia)?;
@@ -555,35 +555,6 @@ mod tests {
         assert!((got - x(q)).abs() < 1.0, "fit {got}, truth {}", x(q));
     }
 
-    #[test]
-    fn a_slowed_exchange_barely_moves_the_fit() {
-        // 30 counts/ms with curvature; one exchange held up by the host: its answer was
-        // decoded 6 ms late, so its midpoint is 3 ms after the instant its value stands for.
-        let x = |t: f64| 30.0 * t + 0.2 * t * t;
-        let t0 = Instant::now();
-        let mut h = SampleHistory::new(64, Duration::from_millis(5), Duration::from_millis(40));
-        for k in 0..8u32 {
-            let at = 15.0 * f64::from(k);
-            let s = if k == 3 {
-                let held = exchange(t0, at, 5.5, x);
-                PositionSample::new(
-                    held.request_at,
-                    held.reply_at + Duration::from_millis(6),
-                    held.counts,
-                    Duration::ZERO,
-                )
-            } else {
-                exchange(t0, at, 5.5, x)
-            };
-            h.push(s);
-        }
-        for q in [40.0, 47.0, 52.0] {
-            let got = h.position_at(t0 + Duration::from_secs_f64(q / 1000.0)).unwrap();
-            // Unweighted, the slowed sample would put its value 3 ms late: ~100 counts off.
-            assert!((got - x(q)).abs() < 8.0, "at {q} ms: fit {got}, truth {}", x(q));
-        }
-    }
-
     /// An exchange like [`exchange`], answered `late_ms` late (the host held it up).
     fn held(t0: Instant, at_ms: f64, late_ms: f64, x: impl Fn(f64) -> f64) -> PositionSample {
         let s = exchange(t0, at_ms, 5.5, x);
@@ -593,6 +564,24 @@ mod tests {
             s.counts,
             Duration::ZERO,
         )
+    }
+
+    #[test]
+    fn a_slowed_exchange_barely_moves_the_fit() {
+        // 30 counts/ms with curvature; one exchange held up by the host: its answer was
+        // decoded 6 ms late, so its midpoint is 3 ms after the instant its value stands for.
+        let x = |t: f64| 30.0 * t + 0.2 * t * t;
+        let t0 = Instant::now();
+        let mut h = SampleHistory::new(64, Duration::from_millis(5), Duration::from_millis(40));
+        for k in 0..8u32 {
+            let at = 15.0 * f64::from(k);
+            h.push(if k == 3 { held(t0, at, 6.0, x) } else { exchange(t0, at, 5.5, x) });
+        }
+        for q in [40.0, 47.0, 52.0] {
+            let got = h.position_at(t0 + Duration::from_secs_f64(q / 1000.0)).unwrap();
+            // Unweighted, the slowed sample would put its value 3 ms late: ~100 counts off.
+            assert!((got - x(q)).abs() < 8.0, "at {q} ms: fit {got}, truth {}", x(q));
+        }
     }
 
     #[test]

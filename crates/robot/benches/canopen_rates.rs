@@ -32,7 +32,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use criterion::{Criterion, Throughput};
-use motus_can::socketcand::{Hub, HubConfig, SocketcandBus, SETTLE};
+use motus_can::socketcand::{Hub, HubConfig, Message, SocketcandBus, StreamParser, SETTLE};
 use motus_can::{CanBus, CanFrame};
 use motus_canopen::Master;
 use motus_icla_sim::{run_shared, SharedDrives, SimConfig, SimDrive};
@@ -201,6 +201,28 @@ fn eds_file(node: u8) -> tempfile::NamedTempFile {
     eds
 }
 
+/// 602#4041600000000000: the SDO upload request of 0x6041:00 to node 2 (CiA 301 §7.2.4.3.6).
+fn upload_request() -> CanFrame {
+    "602#4041600000000000".parse().unwrap()
+}
+
+/// The frame that ends [`spawn_echo`]'s thread.
+fn echo_stop() -> CanFrame {
+    CanFrame::new(0x7FF, &[]).unwrap()
+}
+
+/// A thread that answers every frame on `bus` with the same data 0x80 higher (as an SDO
+/// server's response COB-ID is its request's plus 0x80), until [`echo_stop`].
+fn spawn_echo(bus: Arc<dyn CanBus>) -> JoinHandle<()> {
+    std::thread::spawn(move || loop {
+        let Ok(Some(r)) = bus.recv(Duration::from_secs(5)) else { return };
+        if r.frame.id() == echo_stop().id() {
+            return;
+        }
+        bus.send(&CanFrame::new(r.frame.id() + 0x80, r.frame.data()).unwrap()).unwrap();
+    })
+}
+
 /// The floor of any request/response on this bus: a raw frame from client A through the
 /// hub to an echo thread on client B and back (no CANopen at all).
 fn hub_floor(c: &mut Criterion, seconds: f64) -> f64 {
@@ -208,15 +230,8 @@ fn hub_floor(c: &mut Criterion, seconds: f64) -> f64 {
     let a = connect(&hub);
     let b = connect(&hub);
     std::thread::sleep(SETTLE * 2);
-    let echo = std::thread::spawn(move || loop {
-        let Ok(Some(r)) = b.recv(Duration::from_secs(5)) else { return };
-        if r.frame.id() == 0x7FF {
-            return;
-        }
-        b.send(&CanFrame::new(r.frame.id() + 0x80, r.frame.data()).unwrap()).unwrap();
-    });
-    // 602#4041600000000000: the SDO upload request of 0x6041:00 to node 2 (CiA 301 §7.2.4.3.6).
-    let request: CanFrame = "602#4041600000000000".parse().unwrap();
+    let echo = spawn_echo(b);
+    let request = upload_request();
     let once = || {
         a.send(&request).unwrap();
         a.recv(Duration::from_secs(1)).unwrap().expect("echo")
@@ -237,7 +252,7 @@ fn hub_floor(c: &mut Criterion, seconds: f64) -> f64 {
     println!(
         "RATE floor: raw frame echo via the hub (no CANopen): {rate:.0} round trips/s ({n} in {seconds} s)"
     );
-    a.send(&CanFrame::new(0x7FF, &[]).unwrap()).unwrap();
+    a.send(&echo_stop()).unwrap();
     let _ = echo.join();
     rate
 }
@@ -249,39 +264,34 @@ fn hub_floor(c: &mut Criterion, seconds: f64) -> f64 {
 fn spinning_floor(seconds: f64) -> f64 {
     use std::io::Write;
     let hub = start_hub();
-    let echo_bus = connect(&hub);
+    let echo = spawn_echo(connect(&hub));
     let mut raw = std::net::TcpStream::connect(hub.local_addr()).unwrap();
     raw.set_nodelay(true).unwrap();
-    let mut text = String::new();
+    // The socketcand handshake, read with the crate's parser.
+    let mut parser = StreamParser::new();
     let mut buf = [0u8; 4096];
-    let mut expect = |raw: &mut std::net::TcpStream, text: &mut String, want: &str| {
-        while !text.contains(want) {
-            let n = raw.read(&mut buf).unwrap();
-            assert!(n > 0, "hub closed during the handshake");
-            text.push_str(&String::from_utf8_lossy(&buf[..n]));
-        }
-        text.clear();
-    };
-    expect(&mut raw, &mut text, "< hi >");
-    raw.write_all(b"< open can0 >").unwrap();
-    expect(&mut raw, &mut text, "< ok >");
-    raw.write_all(b"< rawmode >").unwrap();
-    expect(&mut raw, &mut text, "< ok >");
-    let echo = std::thread::spawn(move || loop {
-        let Ok(Some(r)) = echo_bus.recv(Duration::from_secs(5)) else { return };
-        if r.frame.id() == 0x7FF {
+    let mut expect = |raw: &mut std::net::TcpStream, want: Message| loop {
+        if let Some(m) = parser.next() {
+            assert_eq!(m, want, "socketcand handshake");
             return;
         }
-        echo_bus.send(&CanFrame::new(r.frame.id() + 0x80, r.frame.data()).unwrap()).unwrap();
-    });
+        let n = raw.read(&mut buf).unwrap();
+        assert!(n > 0, "hub closed during the handshake");
+        parser.push(&buf[..n]);
+    };
+    expect(&mut raw, Message::Hi);
+    raw.write_all(Message::Open("can0".into()).format().as_bytes()).unwrap();
+    expect(&mut raw, Message::Ok);
+    raw.write_all(Message::Rawmode.format().as_bytes()).unwrap();
+    expect(&mut raw, Message::Ok);
     std::thread::sleep(SETTLE * 2);
     raw.set_nonblocking(true).unwrap();
-    let mut buf = [0u8; 4096];
+    let request = Message::Send(upload_request()).format();
     let start = Instant::now();
     let until = start + Duration::from_secs_f64(seconds);
     let mut n = 0u64;
     while Instant::now() < until {
-        raw.write_all(b"< send 602 8 40 41 60 00 00 00 00 00 >").unwrap();
+        raw.write_all(request.as_bytes()).unwrap();
         loop {
             match raw.read(&mut buf) {
                 Ok(k) if buf[..k].contains(&b'>') => break,
@@ -298,7 +308,7 @@ fn spinning_floor(seconds: f64) -> f64 {
         "RATE floor (spinning raw client, blocking echo client): {rate:.0} round trips/s ({n} in {seconds} s)"
     );
     raw.set_nonblocking(false).unwrap();
-    raw.write_all(b"< send 7FF 0  >").unwrap();
+    raw.write_all(Message::Send(echo_stop()).format().as_bytes()).unwrap();
     let _ = echo.join();
     rate
 }

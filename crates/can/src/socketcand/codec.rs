@@ -303,45 +303,21 @@ impl StreamParser {
 
     /// The text of the next complete message, if any.
     pub fn next_text(&mut self) -> Option<String> {
-        loop {
-            let close = self.buf.iter().position(|&b| b == b'>')?;
-            let head = self.buf.get(..close).unwrap_or(&[]);
-            let open = head.iter().rposition(|&b| b == b'<');
-            let text = open.and_then(|o| head.get(o + 1..)).map(|t| String::from_utf8_lossy(t).into_owned());
-            let consumed_garbage = open.unwrap_or(close + 1);
-            self.garbage += consumed_garbage as u64;
-            self.buf.drain(..=close);
-            match text {
-                Some(t) if t.len() <= MAX_MESSAGE => {
-                    self.trim();
-                    return Some(t);
-                }
-                Some(_) => self.garbage += (close + 1 - consumed_garbage) as u64,
-                None => {}
-            }
-            self.trim();
-        }
+        self.take_next(str::to_owned)
     }
-}
 
-impl Iterator for StreamParser {
-    type Item = Message;
-
-    /// The next complete message, typed leniently (malformed -> [`Message::Unknown`]).
-    /// The same as [`StreamParser::next_text`] then [`Message::parse_lenient`], without
-    /// copying the text when it is valid UTF-8 (the hot path of every socketcand link).
-    fn next(&mut self) -> Option<Message> {
+    /// Takes the next complete message out of the buffer and hands its text (between `<`
+    /// and `>`, borrowed when it is valid UTF-8) to `read`; what is not a message is
+    /// counted as garbage.
+    fn take_next<T>(&mut self, mut read: impl FnMut(&str) -> T) -> Option<T> {
         loop {
             let close = self.buf.iter().position(|&b| b == b'>')?;
             let head = self.buf.get(..close).unwrap_or(&[]);
             let open = head.iter().rposition(|&b| b == b'<');
             let consumed_garbage = open.unwrap_or(close + 1);
             self.garbage += consumed_garbage as u64;
-            let message = match open.and_then(|o| head.get(o + 1..)) {
-                Some(t) if t.len() <= MAX_MESSAGE => Some(match std::str::from_utf8(t) {
-                    Ok(text) => Message::parse_lenient(text),
-                    Err(_) => Message::parse_lenient(&String::from_utf8_lossy(t)),
-                }),
+            let taken = match open.and_then(|o| head.get(o + 1..)) {
+                Some(t) if t.len() <= MAX_MESSAGE => Some(read(&String::from_utf8_lossy(t))),
                 Some(_) => {
                     self.garbage += (close + 1 - consumed_garbage) as u64;
                     None
@@ -350,9 +326,19 @@ impl Iterator for StreamParser {
             };
             self.buf.drain(..=close);
             self.trim();
-            if message.is_some() {
-                return message;
+            if taken.is_some() {
+                return taken;
             }
         }
+    }
+}
+
+impl Iterator for StreamParser {
+    type Item = Message;
+
+    /// The next complete message, typed leniently (malformed -> [`Message::Unknown`]),
+    /// parsed in place (no copy of its text).
+    fn next(&mut self) -> Option<Message> {
+        self.take_next(Message::parse_lenient)
     }
 }
