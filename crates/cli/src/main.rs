@@ -8,6 +8,7 @@ mod cli_cnc;
 mod cli_epl;
 mod cli_station;
 mod commands;
+mod error_text;
 mod hex;
 mod progress;
 
@@ -22,7 +23,7 @@ fn main() -> ExitCode {
     match commands::run(args.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_text::error_text(&e));
             ExitCode::FAILURE
         }
     }

@@ -30,7 +30,9 @@
 //! uncertain, and when several such samples come in a row (the host stalled) no weighting
 //! can recover the time between them, so it counts as a missed sample, and a time only
 //! reachable through such samples is refused ([`WhereError::Delayed`]) rather than
-//! answered wrongly. After the newest sample it extrapolates from the newest two trusted
+//! answered wrongly. The exception is an axis standing still: when a held-up sample and
+//! its neighbours on either side agree within [`SampleHistory::still_band`], when its
+//! value was latched does not matter, and it is used. After the newest sample it extrapolates from the newest two trusted
 //! ones for at most a small margin, and it refuses anything else (older than the history,
 //! newer than the margin, or inside a gap of missed samples longer than the allowed gap;
 //! the fit never reaches across such a gap either).
@@ -154,13 +156,24 @@ pub struct SampleHistory {
     pub max_gap: Duration,
     /// A sample whose exchange took longer than an unhindered one nearby (the lower
     /// quartile of the round trips around it) by more than this is not used: it counts as
-    /// missed (default [`DEFAULT_MAX_DELAY`]).
+    /// missed (default [`DEFAULT_MAX_DELAY`]), unless the axis stood still across it
+    /// (see [`SampleHistory::still_band`]).
     pub max_delay: Duration,
+    /// A held-up sample is still used when its value and those of the samples on either
+    /// side lie within this many counts (default [`DEFAULT_STILL_BAND`]): the exchanges of
+    /// one slave follow each other on the line, so the instant its value was latched lies
+    /// between its neighbours' and, the axis moving one way at most over that time, its
+    /// position there was within the band whenever in the exchange it was latched.
+    pub still_band: i64,
 }
 
 /// Default [`SampleHistory::max_delay`]: a sample's instant is uncertain by half its
 /// hold-up, 1.5 ms at this bound, i.e. 0.045 deg at the pan-tilt head's 30 deg/s.
 pub const DEFAULT_MAX_DELAY: Duration = Duration::from_millis(3);
+
+/// Default [`SampleHistory::still_band`]: 2 counts, an encoder's dither at standstill
+/// (0.004 deg on the pan-tilt head).
+pub const DEFAULT_STILL_BAND: i64 = 2;
 
 /// Samples on each side of a time whose round trips tell an unhindered one.
 const UNHINDERED_REACH: usize = 32;
@@ -176,6 +189,7 @@ impl SampleHistory {
             margin,
             max_gap,
             max_delay: DEFAULT_MAX_DELAY,
+            still_band: DEFAULT_STILL_BAND,
         }
     }
 
@@ -183,6 +197,13 @@ impl SampleHistory {
     #[must_use]
     pub fn with_max_delay(mut self, max_delay: Duration) -> Self {
         self.max_delay = max_delay;
+        self
+    }
+
+    /// The same history with [`SampleHistory::still_band`] set.
+    #[must_use]
+    pub fn with_still_band(mut self, still_band: i64) -> Self {
+        self.still_band = still_band;
         self
     }
 
@@ -247,10 +268,17 @@ impl SampleHistory {
         let i = self.samples.partition_point(|s| s.at() <= t);
         let unhindered = self.unhindered_around(i);
         let delay = |s: &PositionSample| s.round_trip().saturating_sub(unhindered);
-        let trusted = |j: &usize| self.samples.get(*j).is_some_and(|s| delay(s) <= self.max_delay);
+        let trusted = |j: &usize| {
+            self.samples.get(*j).is_some_and(|s| delay(s) <= self.max_delay || self.still_across(*j))
+        };
         // The worst delay among the samples skipped between `from` and `to` (exclusive).
         let held_up = |from: usize, to: usize| {
-            (from..to).filter_map(|j| self.samples.get(j)).map(delay).max().unwrap_or_default()
+            (from..to)
+                .filter(|j| !trusted(j))
+                .filter_map(|j| self.samples.get(j))
+                .map(delay)
+                .max()
+                .unwrap_or_default()
         };
         // A refusal: naming the hold-up if samples were skipped for it, else `otherwise`.
         let refuse = |skipped: Duration, otherwise: WhereError| {
@@ -296,6 +324,23 @@ impl SampleHistory {
         }
         let f = (t - a.at()).as_secs_f64() / gap.as_secs_f64().max(f64::MIN_POSITIVE);
         Ok(a.counts as f64 + f * (b.counts - a.counts) as f64)
+    }
+
+    /// True if sample `j` and its neighbours on either side, each within the allowed gap,
+    /// lie within [`SampleHistory::still_band`] (the axis stood still across it).
+    fn still_across(&self, j: usize) -> bool {
+        let (Some(before), Some(s), Some(after)) = (
+            j.checked_sub(1).and_then(|k| self.samples.get(k)),
+            self.samples.get(j),
+            self.samples.get(j + 1),
+        ) else {
+            return false;
+        };
+        let near =
+            |a: &PositionSample, b: &PositionSample| b.at().saturating_duration_since(a.at()) <= self.max_gap;
+        let lo = before.counts.min(s.counts).min(after.counts);
+        let hi = before.counts.max(s.counts).max(after.counts);
+        near(before, s) && near(s, after) && hi.saturating_sub(lo) <= self.still_band
     }
 
     /// The round trip of an unhindered exchange near index `i`: the lower quartile of the
@@ -622,6 +667,36 @@ mod tests {
         // With no limit, the held-up sample is used (weighted down): a looser answer.
         let loose = g.clone().with_max_delay(Duration::MAX);
         assert!(loose.position_at(t0 + Duration::from_millis(97)).is_ok());
+    }
+
+    #[test]
+    fn held_up_samples_of_an_axis_standing_still_are_used() {
+        // The axis stands at 5000 counts (dithering by a count) while the host stalls every
+        // exchange by 5 ms, then starts to move at 30 counts/ms from 90 ms on.
+        let x = |t: f64| if t < 90.0 { 5000.0 + (t / 15.0) % 2.0 } else { 5000.0 + 30.0 * (t - 90.0) };
+        let t0 = Instant::now();
+        let mut h = SampleHistory::new(64, Duration::from_millis(10), Duration::from_millis(40));
+        for k in 0..3u32 {
+            h.push(exchange(t0, 15.0 * f64::from(k), 5.5, x));
+        }
+        for k in 3..10u32 {
+            h.push(held(t0, 15.0 * f64::from(k), 5.0, x));
+        }
+        for q in [20.0, 50.0, 70.0] {
+            let got = h.position_at(t0 + Duration::from_secs_f64(q / 1000.0)).unwrap();
+            assert!((got - 5000.5).abs() <= 1.0, "at {q} ms: {got}");
+        }
+        // Once it moves, the held-up samples are untrustworthy again: refused.
+        for q in [100.0, 118.0] {
+            let got = h.position_at(t0 + Duration::from_secs_f64(q / 1000.0));
+            assert!(matches!(got, Err(WhereError::Delayed { .. })), "at {q} ms: {got:?}");
+        }
+        // Without the band, the standstill is refused like any held-up stretch.
+        let strict = h.clone().with_still_band(-1);
+        assert!(matches!(
+            strict.position_at(t0 + Duration::from_millis(70)),
+            Err(WhereError::Delayed { .. })
+        ));
     }
 
     #[test]

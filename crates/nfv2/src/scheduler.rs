@@ -74,6 +74,10 @@ pub struct SchedulerConfig {
     /// than this, beyond an unhindered one, is not used for "position at t" (default
     /// 3 ms; see [`crate::samples::SampleHistory::max_delay`]).
     pub where_max_delay: Duration,
+    /// A held-up sample is used all the same when it and its neighbours agree within this
+    /// many counts: the axis stood still (default 2; see
+    /// [`crate::samples::SampleHistory::still_band`]).
+    pub where_still_band: i64,
     /// Position gain of streaming, 1/s (default 8).
     pub stream_gain: f64,
     /// How long a command may wait for its acknowledgement (default 1 s).
@@ -96,6 +100,7 @@ impl Default for SchedulerConfig {
             where_margin: Duration::from_millis(10),
             max_gap: Duration::from_millis(40),
             where_max_delay: crate::samples::DEFAULT_MAX_DELAY,
+            where_still_band: crate::samples::DEFAULT_STILL_BAND,
             stream_gain: 8.0,
             confirm_timeout: Duration::from_secs(1),
             silence: Duration::from_millis(500),

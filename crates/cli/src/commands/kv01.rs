@@ -54,7 +54,7 @@ fn session(arm: &Kv01Arm, json: bool) -> Result<()> {
             Ok(Line { action: Kv01Action::Session }) => eprintln!("error: already in a session"),
             Ok(l) => {
                 if let Err(e) = act(arm, &l.action, json) {
-                    println!("error: {e:#}");
+                    println!("error: {}", crate::error_text::error_text(&e));
                 }
             }
             Err(e) => println!("error: {}", e.to_string().lines().next().unwrap_or("invalid command")),

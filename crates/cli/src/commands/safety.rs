@@ -100,7 +100,7 @@ fn integrity_check(
     let text =
         std::fs::read_to_string(approval).map_err(|e| format!("approval {}: {e}", approval.display()))?;
     let approved = Approval::from_toml(&text).and_then(|a| a.verify(key)).map_err(|e| e.to_string())?;
-    let (set, current) = snapshot(rules, drives).map_err(|e| format!("{e:#}"))?;
+    let (set, current) = snapshot(rules, drives).map_err(|e| crate::error_text::error_text(&e))?;
     let mut integrity = Integrity::new(approved, secret_hash(key));
     integrity.check(&current).map_err(|e| e.to_string())?;
     Ok(set)

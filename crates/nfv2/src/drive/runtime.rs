@@ -97,7 +97,8 @@ impl DriveRuntime {
             regs: Registers::default(),
             intent: Intent::Unknown,
             history: SampleHistory::new(sc.history, sc.where_margin, sc.max_gap)
-                .with_max_delay(sc.where_max_delay),
+                .with_max_delay(sc.where_max_delay)
+                .with_still_band(sc.where_still_band),
             gate: Gate::default(),
             status: StatusFilter::default(),
             current_ma: None,
