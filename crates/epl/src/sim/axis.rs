@@ -58,7 +58,9 @@ impl AxisModel {
     }
 
     /// Advances by `dt` seconds toward `target`, or braking when `quick_stop` is set.
-    /// Position integrates the mean speed over the step (exact for constant acceleration).
+    /// Position integrates the mean speed over the step (exact for constant acceleration);
+    /// an axis that brakes to rest within the step travels only until it stops, whatever
+    /// the step's length (a stretched cycle must not lengthen the braking distance).
     pub fn step(&mut self, dt: f64, target: f64, quick_stop: bool) {
         if dt <= 0.0 {
             return;
@@ -70,10 +72,14 @@ impl AxisModel {
         let v1 = if quick_stop {
             let dv = p.brake_decel * dt;
             if v0.abs() <= dv {
-                0.0
-            } else {
-                v0 - dv * v0.signum()
+                // At rest after |v0| / a_b: the distance v0² / (2 a_b), in v0's direction.
+                if p.brake_decel > 0.0 {
+                    self.position += v0 * v0.abs() / (2.0 * p.brake_decel);
+                }
+                self.speed = 0.0;
+                return;
             }
+            v0 - dv * v0.signum()
         } else {
             let e = target - self.position;
             // Feed-forward of the target's own speed, plus a correction that closes the error in
@@ -105,6 +111,20 @@ mod tests {
         // Trapezoidal integration over 62 full steps and one partial one overshoots the exact
         // 500 by at most one step's travel at the last speed (0.5 * 400 units/s * 400 us).
         assert!((a.position() - 500.0).abs() < 1.0, "{}", a.position());
+    }
+
+    #[test]
+    fn a_long_step_brakes_no_further_than_v2_over_2a() {
+        // A cycle stretched to 8 ms by the host: 2439 units/s stops in 1.5 ms, after
+        // 2439² / (2 * 1 600 000) = 1.8589753125 units (by hand); the step's mean speed
+        // would give 9.756.
+        for v0 in [2439.0, -2439.0] {
+            let mut a = AxisModel::new(DriveParams::default());
+            a.speed = v0;
+            a.step(0.008, 0.0, true);
+            assert_eq!(a.speed(), 0.0);
+            assert!((a.position() - v0.signum() * 1.858_975_312_5).abs() < 1e-9, "{}", a.position());
+        }
     }
 
     #[test]
