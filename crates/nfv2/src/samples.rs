@@ -163,7 +163,8 @@ pub struct SampleHistory {
     /// side lie within this many counts (default [`DEFAULT_STILL_BAND`]): the exchanges of
     /// one slave follow each other on the line, so the instant its value was latched lies
     /// between its neighbours' and, the axis moving one way at most over that time, its
-    /// position there was within the band whenever in the exchange it was latched.
+    /// position there was within the band whenever in the exchange it was latched. A
+    /// negative band turns this off.
     pub still_band: i64,
 }
 
