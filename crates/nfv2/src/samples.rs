@@ -26,7 +26,7 @@
 //! sample thus barely moves the fit, while the quadratic follows the curvature that a
 //! straight line across the gap it leaves would cut. With fewer than four samples in
 //! reach the two around `t` are interpolated linearly. A sample held up by more than
-//! [`SampleHistory::max_delay`] (3 ms by default) is not used at all: its instant is too
+//! [`SampleHistory::max_delay`] (2 ms by default) is not used at all: its instant is too
 //! uncertain, and when several such samples come in a row (the host stalled) no weighting
 //! can recover the time between them, so it counts as a missed sample, and a time only
 //! reachable through such samples is refused ([`WhereError::Delayed`]) rather than
@@ -169,8 +169,9 @@ pub struct SampleHistory {
 }
 
 /// Default [`SampleHistory::max_delay`]: a sample's instant is uncertain by half its
-/// hold-up, 1.5 ms at this bound, i.e. 0.045 deg at the pan-tilt head's 30 deg/s.
-pub const DEFAULT_MAX_DELAY: Duration = Duration::from_millis(3);
+/// hold-up, 1 ms at this bound, plus the regulator's ±0.5 ms: 0.045 deg at the pan-tilt
+/// head's 30 deg/s, inside its 0.05 deg (3 ms left 0.06 deg possible).
+pub const DEFAULT_MAX_DELAY: Duration = Duration::from_millis(2);
 
 /// Default [`SampleHistory::still_band`]: 2 counts, an encoder's dither at standstill
 /// (0.004 deg on the pan-tilt head).

@@ -72,7 +72,7 @@ pub struct SchedulerConfig {
     pub max_gap: Duration,
     /// A position sample whose exchange was held up (by the host or the line) by more
     /// than this, beyond an unhindered one, is not used for "position at t" (default
-    /// 3 ms; see [`crate::samples::SampleHistory::max_delay`]).
+    /// 2 ms; see [`crate::samples::SampleHistory::max_delay`]).
     pub where_max_delay: Duration,
     /// A held-up sample is used all the same when it and its neighbours agree within this
     /// many counts: the axis stood still (default 2; see
