@@ -32,10 +32,11 @@
 //! reachable through such samples is refused ([`WhereError::Delayed`]) rather than
 //! answered wrongly. The exception is an axis standing still: when a held-up sample and
 //! its neighbours on either side agree within [`SampleHistory::still_band`], when its
-//! value was latched does not matter, and it is used. After the newest sample it extrapolates from the newest two trusted
-//! ones for at most a small margin, and it refuses anything else (older than the history,
-//! newer than the margin, or inside a gap of missed samples longer than the allowed gap;
-//! the fit never reaches across such a gap either).
+//! value was latched does not matter, and it is used. After the newest sample it
+//! extrapolates from the newest two trusted ones for at most a small margin, and it
+//! refuses anything else (older than the history, newer than the margin, or inside a gap
+//! of missed samples longer than the allowed gap; the fit never reaches across such a gap
+//! either).
 //!
 //! # Plausibility
 //! The NFv2 CRC-8 misses some single-byte corruptions, so [`Gate`] accepts a position only
