@@ -17,6 +17,7 @@ mod line;
 mod machine;
 mod module;
 mod state_file;
+mod state_writer;
 
 pub use line::{LineOptions, SimLine};
 pub use machine::MachineConfig;

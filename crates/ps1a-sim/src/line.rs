@@ -9,6 +9,7 @@
 use crate::machine::MachineConfig;
 use crate::module::Module;
 use crate::state_file::{ModuleState, StateFile, StateFileError};
+use crate::state_writer::StateWriter;
 use motus_ps1a_protocol::{CommandStream, Parameters, StreamEvent, REPLY_LEN};
 use motus_serial::{FaultConfig, FaultInjector, Link, Paced};
 use rand::rngs::SmallRng;
@@ -54,6 +55,8 @@ pub struct SimLine {
     last_save: Instant,
     frames_served: u64,
     saved_positions: Vec<f64>,
+    /// Writes the state file off the serving loop (`None`: no state file).
+    writer: Option<StateWriter>,
 }
 
 impl SimLine {
@@ -106,6 +109,7 @@ impl SimLine {
             link = Box::new(Paced::new(link));
         }
         let rx_rng = SmallRng::seed_from_u64(options.faults.seed ^ 0x5eed);
+        let writer = options.state_file.clone().map(StateWriter::spawn).transpose()?;
         let mut line = SimLine {
             modules,
             link,
@@ -116,6 +120,7 @@ impl SimLine {
             last_save: Instant::now(),
             frames_served: 0,
             saved_positions: Vec::new(),
+            writer,
         };
         line.save()?;
         Ok(line)
@@ -140,11 +145,18 @@ impl SimLine {
         self.start.elapsed()
     }
 
-    /// Writes the state file (if any).
+    /// Writes the state file (if any) and returns once it is on disk.
     pub fn save(&mut self) -> Result<(), StateFileError> {
+        self.save_in_background()?;
+        self.writer.as_ref().map_or(Ok(()), StateWriter::flush)
+    }
+
+    /// Hands the state to the state file's writer and returns at once, so that a slow
+    /// disk never delays a reply (see `state_writer`). Fails with an earlier write's error.
+    fn save_in_background(&mut self) -> Result<(), StateFileError> {
         self.last_save = Instant::now();
         self.saved_positions = self.modules.iter().map(Module::machine_position).collect();
-        let Some(path) = &self.options.state_file else { return Ok(()) };
+        let Some(writer) = &self.writer else { return Ok(()) };
         let state = StateFile {
             version: StateFile::VERSION,
             modules: self
@@ -157,7 +169,7 @@ impl SimLine {
                 })
                 .collect(),
         };
-        state.save(path)
+        writer.submit(state)
     }
 
     /// Serves the line until `stop` is set.
@@ -226,7 +238,7 @@ impl SimLine {
                 first_byte_at = None;
             }
             if self.modules.iter_mut().any(|m| m.take_eeprom_dirty()) {
-                self.save().map_err(std::io::Error::other)?;
+                self.save_in_background().map_err(std::io::Error::other)?;
             }
         }
         self.tick()?;
@@ -241,7 +253,7 @@ impl SimLine {
         let moved =
             self.modules.iter().map(Module::machine_position).ne(self.saved_positions.iter().copied());
         if moved && self.last_save.elapsed() > Duration::from_millis(200) {
-            self.save().map_err(std::io::Error::other)?;
+            self.save_in_background().map_err(std::io::Error::other)?;
         }
         Ok(())
     }
