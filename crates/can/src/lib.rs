@@ -12,11 +12,13 @@
 //! - [`decorate`]: wrappers that log (candump, pcap), inject faults or measure bus load.
 //! - [`wire_time`]: how long a frame occupies a real bus at a bit rate.
 //! - [`open_bus`]: a bus from a URI.
+//! - [`reconnect`]: a bus that reopens its transport with back-off when it closes.
 
 #![forbid(unsafe_code)]
 
 pub mod decorate;
 pub mod memory;
+pub mod reconnect;
 pub mod slcan;
 #[cfg(target_os = "linux")]
 pub mod socketcan;
@@ -26,6 +28,7 @@ pub mod wire_time;
 
 pub use memory::{MemoryHub, MemoryPort};
 pub use motus_canopen_protocol::CanFrame;
+pub use reconnect::{ReconnectPolicy, ReconnectingBus, WhileDown};
 pub use uri::{open_bus, BusUri};
 
 use std::time::{Duration, Instant};

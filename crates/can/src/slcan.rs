@@ -92,6 +92,7 @@ impl SlcanBus {
         let mut reader = port.try_clone().map_err(unavailable)?;
         let (tx, rx) = channel();
         std::thread::Builder::new().name(format!("slcan-{path}")).spawn(move || {
+            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
             let mut line = String::new();
             let mut buf = [0u8; 256];
             loop {

@@ -9,7 +9,7 @@ use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{channel, Receiver, Sender};
-use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError, TryLockError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -373,7 +373,10 @@ pub(crate) fn start(
         let (snap, stop) = (Arc::clone(&snapshot), Arc::clone(&stop));
         let t = std::thread::Builder::new()
             .name("juggler-supervisor".into())
-            .spawn(move || supervise(online, &*link, rx, &snap, &stop))
+            .spawn(move || {
+                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
+                supervise(online, &*link, rx, &snap, &stop)
+            })
             .map_err(|e| err(e.to_string()))?;
         threads.push(t);
     }
@@ -384,6 +387,7 @@ pub(crate) fn start(
         let t = std::thread::Builder::new()
             .name("juggler-monitor".into())
             .spawn(move || {
+                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
                 let r = monitor.run(&*mon_link, &stop, |c| {
                     let now = Instant::now();
                     let mut v = lock(&views);
@@ -417,6 +421,12 @@ fn supervise(
     let mut buf = vec![0u8; motus_epl::transport::MAX_FRAME];
     let mut last_publish = Instant::now();
     let mut names: Vec<String> = sup.supervisor().rules().axes().iter().map(|a| a.name.clone()).collect();
+    // This thread's own copy of what it publishes. Readers (web threads, at a lower
+    // priority) hold the shared snapshot's lock while they copy it; a reader preempted there
+    // must never make this thread wait, whose lease is renewed every cycle. So the copy is
+    // published only when the lock is free, and tried again at the next frame otherwise.
+    let mut mine = lock(snapshot).clone();
+    let mut dirty = false;
     while !stop.load(Ordering::Relaxed) {
         while let Ok(op) = ops.try_recv() {
             match op {
@@ -424,16 +434,17 @@ fn supervise(
                 Op::Reset => sup.reset(),
                 Op::Integrity(r) => {
                     sup.set_integrity(r.clone());
-                    lock(snapshot).integrity = r;
+                    mine.integrity = r;
+                    dirty = true;
                 }
                 Op::Rules(rules) => match InputMap::new(&rules, juggler::value_map(&rules), STATUS_HOMED) {
                     Ok(inputs) => {
                         names = rules.axes().iter().map(|a| a.name.clone()).collect();
                         sup.replace_rules(*rules, inputs);
-                        let mut s = lock(snapshot);
-                        s.diagnosis =
+                        mine.diagnosis =
                             Some("new safety rules installed: the drives are held until reset".into());
-                        s.stops = sup.stops();
+                        mine.stops = sup.stops();
+                        dirty = true;
                         tracing::warn!("juggler supervisor: new rules installed, drives stopped and held");
                     }
                     Err(e) => tracing::error!(error = %e, "new rules not installed"),
@@ -451,25 +462,41 @@ fn supervise(
                 break;
             }
         };
-        if event.is_none() && last_publish.elapsed() < Duration::from_millis(10) {
-            continue;
-        }
-        last_publish = Instant::now();
-        let mut s = lock(snapshot);
+        dirty |= event.is_some();
         match event {
-            Some(OnlineEvent::Safe { .. }) => s.safe_events += 1,
+            Some(OnlineEvent::Safe { .. }) => mine.safe_events += 1,
             Some(OnlineEvent::Unsafe { diagnosis, .. }) => {
-                s.unsafe_events += 1;
-                s.diagnosis = Some(diagnosis);
+                mine.unsafe_events += 1;
+                mine.diagnosis = Some(diagnosis);
             }
             None => {}
         }
-        s.safe_to_run = sup.safe_to_run();
-        s.held = sup.held();
-        s.frames = sup.frames();
-        s.stops = sup.stops();
-        s.reaches = names.iter().cloned().zip(sup.supervisor().reaches().iter().copied()).collect();
-        s.samples = names.iter().cloned().zip(sup.samples().iter().copied()).collect();
+        if !dirty && last_publish.elapsed() < Duration::from_millis(10) {
+            continue;
+        }
+        mine.safe_to_run = sup.safe_to_run();
+        mine.held = sup.held();
+        mine.frames = sup.frames();
+        mine.stops = sup.stops();
+        mine.reaches = names.iter().cloned().zip(sup.supervisor().reaches().iter().copied()).collect();
+        mine.samples = names.iter().cloned().zip(sup.samples().iter().copied()).collect();
+        let published = match snapshot.try_lock() {
+            Ok(mut s) => {
+                s.clone_from(&mine);
+                true
+            }
+            Err(TryLockError::Poisoned(p)) => {
+                p.into_inner().clone_from(&mine);
+                true
+            }
+            Err(TryLockError::WouldBlock) => false,
+        };
+        if published {
+            last_publish = Instant::now();
+            dirty = false;
+        } else {
+            dirty = true;
+        }
     }
     sup.stop_all();
 }

@@ -113,6 +113,11 @@ pub(crate) trait DeviceCtl: Send + Sync {
     /// Reopens the driver (always).
     fn connect(&self) -> Result<(), DeviceError>;
     fn is_connected(&self) -> bool;
+    /// A latched condition only the operator can clear, saying what to do
+    /// ([`DeviceHandle::needs_operator`]).
+    fn needs_operator(&self) -> Option<String> {
+        None
+    }
 }
 
 /// The port a serial path names now (`None`: it does not exist): a restarted simulator's
@@ -151,6 +156,10 @@ impl DeviceHandle for CellDevice {
 
     fn axes(&self) -> Vec<String> {
         self.ctl.axes()
+    }
+
+    fn needs_operator(&mut self) -> Option<String> {
+        self.ctl.needs_operator()
     }
 }
 

@@ -95,8 +95,10 @@ impl Ps1aDevice {
         let addr = device.address.and_then(|a| u8::try_from(a).ok()).ok_or_else(|| {
             CellError::Config(format!("device {}: a PS1A needs an address 0..255", device.name))
         })?;
-        // The module's maximum position: the upper machine limit in device units.
-        let max = scale.position_from_si(limits.max).floor();
+        // The module's maximum position: the upper machine limit in device units (a limit of a
+        // whole number of units, 0.65535 m at 1e-5 m, is that number despite the float error).
+        let units = scale.position_from_si(limits.max);
+        let max = if (units - units.round()).abs() < 1e-6 { units.round() } else { units.floor() };
         let max_position = U24::new(if max >= 1.0 { max as u32 } else { 1 }).unwrap_or(U24::MAX);
         let config = AxisConfig { addr, scale, max_position, ..AxisConfig::default() };
         Ok(Self { name: device.name.clone(), axis, link, config, slot, bus: Mutex::new(None) })

@@ -50,7 +50,10 @@ impl SimThread {
         let body = (self.starter)(Arc::clone(&stop))?;
         let thread = std::thread::Builder::new()
             .name(format!("sim-{}", self.name))
-            .spawn(body)
+            .spawn(move || {
+                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Simulator);
+                body()
+            })
             .map_err(|e| CellError::Simulator { name: self.name.clone(), reason: format!("spawn: {e}") })?;
         self.stop = stop;
         self.thread = Some(thread);

@@ -118,16 +118,27 @@ impl CanopenDrive {
         Ok(())
     }
 
-    /// Starts the thread that keeps the TPDO cache.
+    /// Starts the thread that keeps the TPDO cache. It ends (and its subscription with it)
+    /// once this driver is dropped, so a drive brought up again and again (after restarts of
+    /// the drive) leaves no thread behind.
     fn listen(&self) {
         let rx = self.master.subscribe(motus_canopen::CobFilter::Range(
             0x180 + u32::from(self.node)..=0x280 + u32::from(self.node),
         ));
-        let cache = Arc::clone(&self.cache);
+        let cache = Arc::downgrade(&self.cache);
         let (t1, t2) = (0x180 + u32::from(self.node), 0x280 + u32::from(self.node));
         let spawned =
             std::thread::Builder::new().name(format!("cia402-tpdo-{}", self.node)).spawn(move || {
-                for r in rx {
+                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
+                loop {
+                    let r = match rx.recv_timeout(Duration::from_secs(1)) {
+                        Ok(r) => r,
+                        Err(std::sync::mpsc::RecvTimeoutError::Timeout) if cache.strong_count() > 0 => {
+                            continue
+                        }
+                        Err(_) => break,
+                    };
+                    let Some(cache) = cache.upgrade() else { break };
                     let id = r.frame.id();
                     let d = r.frame.data();
                     let mut c = match cache.lock() {

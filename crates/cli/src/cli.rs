@@ -595,4 +595,7 @@ pub struct DemoArgs {
     /// Keep the simulators running after the sequence until Ctrl-C (with --ps1a-sequence).
     #[arg(long)]
     pub stay: bool,
+    /// Real-time priorities of the device and cyclic threads (docs/decisions.md).
+    #[arg(long, value_enum, default_value_t = crate::cli_station::RealtimeArg::Nice)]
+    pub realtime: crate::cli_station::RealtimeArg,
 }

@@ -73,4 +73,30 @@ pub struct ServeArgs {
     /// The station's database (default: `<config stem>.lab.sqlite` beside the config).
     #[arg(long)]
     pub db: Option<PathBuf>,
+    /// Real-time priorities of the device and cyclic threads (docs/decisions.md).
+    #[arg(long, value_enum, default_value_t = RealtimeArg::Nice)]
+    pub realtime: RealtimeArg,
+}
+
+/// `--realtime` of `motus serve` and `motus demo`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RealtimeArg {
+    /// Nice levels only (the default): web threads at nice +10, the machine's threads at the
+    /// default priority.
+    Nice,
+    /// SCHED_FIFO for device, cyclic and simulator threads and locked memory when permitted
+    /// (root, CAP_SYS_NICE or RLIMIT_RTPRIO), else nice levels; web threads at nice +10.
+    Auto,
+    /// Every thread at the default priority.
+    Off,
+}
+
+impl From<RealtimeArg> for motus_realtime::RealtimePolicy {
+    fn from(a: RealtimeArg) -> Self {
+        match a {
+            RealtimeArg::Nice => motus_realtime::RealtimePolicy::Nice,
+            RealtimeArg::Auto => motus_realtime::RealtimePolicy::Auto,
+            RealtimeArg::Off => motus_realtime::RealtimePolicy::Off,
+        }
+    }
 }

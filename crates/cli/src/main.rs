@@ -15,6 +15,13 @@ mod progress;
 use clap::Parser;
 use std::process::ExitCode;
 
+/// The process's allocator. mimalloc gives every thread its own heap, so a device or cyclic
+/// thread never waits inside `malloc` for a lock held by a web thread: with glibc's shared
+/// arenas, a preempted web thread kept the POWERLINK cycle and the juggler's supervisor
+/// waiting for 9 to 26 ms (docs/decisions.md, "Real-time priorities").
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() -> ExitCode {
     let args = cli::Cli::parse();
     let filter = tracing_subscriber::EnvFilter::try_from_env("MOTUS_LOG")

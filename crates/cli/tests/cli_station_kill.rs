@@ -162,7 +162,14 @@ fn killing_the_station_stops_every_can_drive_by_its_heartbeat_watchdog() {
             http(&listen, "POST", &format!("/api/axes/{w}/move"), &auth, r#"{"target":500.0,"speed":5.0}"#);
         assert_eq!(st, 200, "{w}: {b}");
     }
-    std::thread::sleep(Duration::from_millis(1500));
+    // A jog is a dead-man: renewed every 200 ms (the station stops it 0.5 s after the last).
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_millis(1500) {
+        std::thread::sleep(Duration::from_millis(200));
+        let (st, _, b) =
+            http(&listen, "POST", "/api/axes/wheel1/jog", &auth, r#"{"direction":1,"speed":5.0}"#);
+        assert_eq!(st, 200, "{b}");
+    }
     for n in ["2", "3", "4"] {
         let v = sdo_read(&bus, n, "0x606C", "i32").unwrap();
         assert!(v.abs() > 10, "node {n} turns before the kill: {v} Inc/s");

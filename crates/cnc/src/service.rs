@@ -3,7 +3,9 @@
 //!
 //! Each run is checked completely before it starts (an invalid program never moves an
 //! axis), then stepped every [`CYCLE`] against the drilling technology on the simulated
-//! machine; each set-point goes to the optional sink (the station's gantry axes).
+//! machine; each set-point goes to the optional sink (the station's gantry axes). The
+//! check runs on the service's thread, never in the caller ([`ProgramService::run`]); a
+//! program its caller has checked already starts at once ([`ProgramService::run_checked`]).
 
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -11,7 +13,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use motus_cnc_planner::Setpoint;
-use motus_gcode::{interpret_with, GcodeError, InterpreterConfig};
+use motus_gcode::{Interpreter, InterpreterConfig};
 use serde::Serialize;
 
 use crate::runner::{Limits3, ProgramRun, RunStatus};
@@ -77,7 +79,7 @@ impl Default for ServiceStatus {
 }
 
 enum Cmd {
-    Run { name: String, src: String },
+    Run { name: String, src: String, checked: bool },
     Hold,
     Resume,
     Stop,
@@ -110,14 +112,31 @@ impl ProgramService {
         Ok(Self { tx, status, thread: Some(thread) })
     }
 
-    /// Checks `src` completely, then runs it (refused while another run is active).
-    pub fn run(&self, name: &str, src: &str) -> Result<(), GcodeError> {
-        interpret_with(
-            src,
-            InterpreterConfig { require_program_end: false, ..InterpreterConfig::default() },
-        )?;
-        let _ = self.tx.send(Cmd::Run { name: name.into(), src: src.into() });
-        Ok(())
+    /// Runs `src` after the last run ends: the service's thread first checks it completely
+    /// (with the service's [`InterpreterConfig`], so its step limit and cancel flag bound
+    /// the check) and ends the run [`ServiceState::Stopped`] with the error, without moving,
+    /// if it is invalid. Returns at once; the status says `Running` from now on.
+    pub fn run(&self, name: &str, src: &str) {
+        self.send_run(name, src, false);
+    }
+
+    /// Runs `src`, which the caller has checked completely with the same interpreter
+    /// settings (e.g. the station's bounded program checker): it starts at once. Should
+    /// an error appear anyway, the path stops within the limits before the invalid line.
+    pub fn run_checked(&self, name: &str, src: &str) {
+        self.send_run(name, src, true);
+    }
+
+    fn send_run(&self, name: &str, src: &str, checked: bool) {
+        set(&self.status, |s| {
+            *s = ServiceStatus {
+                state: ServiceState::Running,
+                program: Some(name.to_owned()),
+                xyz: s.xyz,
+                ..ServiceStatus::default()
+            }
+        });
+        let _ = self.tx.send(Cmd::Run { name: name.into(), src: src.into(), checked });
     }
 
     /// Feed hold.
@@ -163,13 +182,23 @@ fn service_loop(
 ) {
     let mut position = [0.0; AXES];
     loop {
-        let (name, src) = match rx.recv() {
-            Ok(Cmd::Run { name, src }) => (name, src),
+        let (name, src, checked) = match rx.recv() {
+            Ok(Cmd::Run { name, src, checked }) => (name, src, checked),
             Ok(Cmd::Quit) | Err(_) => return,
             Ok(_) => continue,
         };
         let mut cfg = config.clone();
         cfg.require_program_end = false;
+        if !checked {
+            // The whole program, streamed (no list of calls kept), before anything moves.
+            if let Some(Err(e)) = Interpreter::with_config(&src, cfg.clone()).find(Result::is_err) {
+                set(status, |s| {
+                    s.state = ServiceState::Stopped;
+                    s.message = Some(e.to_string());
+                });
+                continue;
+            }
+        }
         let lines: Vec<&str> = src.lines().collect();
         let mut run = match ProgramRun::new(&src, cfg, limits, position) {
             Ok(r) => r,
@@ -186,6 +215,7 @@ fn service_loop(
             *s = ServiceStatus {
                 state: ServiceState::Running,
                 program: Some(name.clone()),
+                xyz: position,
                 ..ServiceStatus::default()
             }
         });
@@ -274,8 +304,13 @@ mod tests {
     #[test]
     fn runs_holds_resumes_and_stops_in_real_time() {
         let svc = ProgramService::start(Limits3::default(), InterpreterConfig::default(), None).unwrap();
-        assert!(svc.run("bad", "G1 X10\n").is_err(), "zero feed: refused before moving");
-        svc.run("sq", "G21 G90 F3000\nG1 X20\nG1 Y20\nG1 X0\nG1 Y0\nM2\n").unwrap();
+        // Zero feed on line 2, after a move: refused before anything moves.
+        svc.run("bad", "G0 X5\nG1 X10\n");
+        let bad = wait(&svc, ServiceState::Stopped, 5);
+        assert_eq!(bad.state, ServiceState::Stopped, "{bad:?}");
+        assert!(bad.message.as_deref().unwrap_or("").starts_with("2:"), "{bad:?}");
+        assert_eq!(bad.xyz, [0.0; AXES], "nothing moved");
+        svc.run("sq", "G21 G90 F3000\nG1 X20\nG1 Y20\nG1 X0\nG1 Y0\nM2\n");
         std::thread::sleep(Duration::from_millis(150));
         svc.hold();
         let held = wait(&svc, ServiceState::Held, 2);
@@ -287,7 +322,7 @@ mod tests {
         let done = wait(&svc, ServiceState::Done, 10);
         assert_eq!(done.state, ServiceState::Done, "{done:?}");
         assert!((done.progress - 1.0).abs() < 1e-9);
-        svc.run("again", "G21 G90 F3000\nG1 X50\nG1 X0\nM2\n").unwrap();
+        svc.run_checked("again", "G21 G90 F3000\nG1 X50\nG1 X0\nM2\n");
         std::thread::sleep(Duration::from_millis(100));
         svc.stop();
         let stopped = wait(&svc, ServiceState::Stopped, 3);

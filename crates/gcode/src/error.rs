@@ -143,6 +143,9 @@ pub enum ErrorKind {
     /// The configured limit on executed lines was reached (endless loop guard).
     #[error("Too many lines executed (limit {0}); endless loop?")]
     StepLimit(u64),
+    /// The interpreter's [`crate::CancelFlag`] was set (after this many lines executed).
+    #[error("Interpretation cancelled after {0} lines")]
+    Cancelled(u64),
     /// An EX external parameter word is malformed.
     #[error("Bad external parameter: {0}")]
     BadExternal(&'static str),

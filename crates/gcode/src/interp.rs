@@ -15,6 +15,8 @@ mod motion;
 mod oword;
 
 use std::collections::{HashMap, VecDeque};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use self::motion::Motion;
 use self::oword::{index_owords, is_oword_line, CallFrame, OLine};
@@ -37,6 +39,40 @@ pub struct InterpreterConfig {
     pub max_steps: u64,
     /// Maximum subroutine nesting.
     pub max_call_depth: usize,
+    /// A flag another thread (a timer, a user) sets to stop the interpreter: it is read
+    /// before every line (one relaxed atomic load), and the interpreter then ends with
+    /// [`ErrorKind::Cancelled`] at the line it was about to execute. `None`: not
+    /// cancellable.
+    pub cancel: Option<CancelFlag>,
+}
+
+/// A shared cancellation flag for [`InterpreterConfig::cancel`] (the interpreter only reads
+/// it: it stays sans-IO, with no clock or thread of its own).
+#[derive(Debug, Clone, Default)]
+pub struct CancelFlag(Arc<AtomicBool>);
+
+impl CancelFlag {
+    /// A new, unset flag.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Sets the flag: interpreters holding it stop at their next read.
+    pub fn cancel(&self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+
+    /// True once [`CancelFlag::cancel`] was called.
+    pub fn is_cancelled(&self) -> bool {
+        self.0.load(Ordering::Relaxed)
+    }
+}
+
+impl PartialEq for CancelFlag {
+    /// Two flags are equal when they are the same flag.
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.0, &other.0)
+    }
 }
 
 impl Default for InterpreterConfig {
@@ -47,6 +83,7 @@ impl Default for InterpreterConfig {
             require_program_end: true,
             max_steps: 100_000_000,
             max_call_depth: 64,
+            cancel: None,
         }
     }
 }
@@ -142,6 +179,11 @@ impl<'a> Interpreter<'a> {
         it
     }
 
+    /// Lines executed so far (what [`InterpreterConfig::max_steps`] bounds).
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
     fn emit(&mut self, canon: Canon) {
         self.out.push_back(CanonCall { line: self.cur_line, n: self.cur_n, canon, machine: None });
     }
@@ -184,6 +226,11 @@ impl<'a> Interpreter<'a> {
         if self.steps > self.config.max_steps {
             self.done = true;
             return Err(self.err((1, ErrorKind::StepLimit(self.config.max_steps))));
+        }
+        if self.config.cancel.as_ref().is_some_and(CancelFlag::is_cancelled) {
+            self.done = true;
+            self.cur_line = u32::try_from(self.pc + 1).unwrap_or(u32::MAX);
+            return Err(self.err((1, ErrorKind::Cancelled(self.steps))));
         }
         let here = self.pc;
         self.cur_line = u32::try_from(here + 1).unwrap_or(u32::MAX);

@@ -37,4 +37,4 @@ mod value;
 pub use canon::{ArcFeed, Canon, CanonCall, ExArray, ExValue, MSync, MachineMove, Plane, Pose, Units};
 pub use error::{ErrorKind, GcodeError};
 pub use format::{format_canon, format_line, write_canon, write_line, Precision};
-pub use interp::{interpret, interpret_with, Interpreter, InterpreterConfig};
+pub use interp::{interpret, interpret_with, CancelFlag, Interpreter, InterpreterConfig};

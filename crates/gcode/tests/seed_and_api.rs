@@ -113,6 +113,30 @@ fn endless_loop_is_caught() {
 }
 
 #[test]
+fn a_cancelled_interpreter_stops_at_its_next_line() {
+    use motus_gcode::CancelFlag;
+    let flag = CancelFlag::new();
+    let cfg = InterpreterConfig { cancel: Some(flag.clone()), ..InterpreterConfig::default() };
+    let src = "G21\n#1 = 0\no1 while [1]\nG1 X[#1] F100\n#1 = [#1 + 1]\no1 endwhile\nM2\n";
+    let mut it = Interpreter::with_config(src, cfg);
+    // Not cancelled: it runs, one move per loop.
+    let moves = it.by_ref().filter_map(Result::ok).filter(|c| c.machine.is_some()).take(100).count();
+    assert_eq!(moves, 100);
+    let before = it.steps();
+    flag.cancel();
+    let e = it.next().unwrap().unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Cancelled(before + 1), "{e}");
+    assert!((3..=6).contains(&e.line), "{e}: inside the loop");
+    assert!(it.next().is_none(), "ended");
+    // A flag set before the start stops the program before its first line.
+    let flag = CancelFlag::new();
+    flag.cancel();
+    let cfg = InterpreterConfig { cancel: Some(flag), ..InterpreterConfig::default() };
+    let e = interpret_with("G0 X1\nM2\n", cfg).unwrap_err();
+    assert_eq!((e.line, e.kind), (1, ErrorKind::Cancelled(1)));
+}
+
+#[test]
 fn program_end_optional() {
     let cfg = InterpreterConfig { require_program_end: false, ..InterpreterConfig::default() };
     let calls = interpret_with("G0 X1\n", cfg).unwrap();

@@ -126,6 +126,23 @@ pub struct JointState {
     pub longest_gap: Duration,
 }
 
+/// A communication module that latched its 700 ms safety time-out (see
+/// [`Kv01Arm::latched_timeouts`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LatchedTimeout {
+    /// Joint number 1..=6 (module `0xE0 + joint`).
+    pub joint: u8,
+    /// The module's address.
+    pub address: u8,
+    /// When this host first saw the module answer "TO".
+    pub since: Instant,
+    /// When the module last answered "TO" (it is on the line, and still latched).
+    pub last_answer: Instant,
+    /// A normal reply came after the last "TO": the module was power-cycled, and this
+    /// driver (which keeps the joint disabled) must be started again to use it.
+    pub answers_normally_again: bool,
+}
+
 /// The KV-01 arm.
 pub struct Kv01Arm {
     bus: Kv01Bus,
@@ -145,8 +162,11 @@ impl Kv01Arm {
         let shared = Arc::new(Shared::new(config));
         let stop = Arc::new(AtomicBool::new(false));
         let (b, s, f) = (bus.clone(), shared.clone(), stop.clone());
-        let thread =
-            std::thread::Builder::new().name("kv01-arm".into()).spawn(move || controller::run(&b, &s, &f))?;
+        let thread = std::thread::Builder::new().name("kv01-arm".into()).spawn(move || {
+            // The keep-alive and position loop: each module trips after 700 ms without it.
+            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
+            controller::run(&b, &s, &f)
+        })?;
         let arm = Kv01Arm { bus, shared, stop, thread: Mutex::new(Some(thread)) };
         arm.wait_first_readings(Duration::from_secs(2));
         Ok(arm)
@@ -155,7 +175,12 @@ impl Kv01Arm {
     fn wait_first_readings(&self, timeout: Duration) {
         let t0 = Instant::now();
         while t0.elapsed() < timeout {
-            if self.lock().joints.iter().all(|j| j.reading.is_some() || j.fault.is_some()) {
+            if self
+                .lock()
+                .joints
+                .iter()
+                .all(|j| j.reading.is_some() || j.fault.is_some() || j.timeout_latched.is_some())
+            {
                 return;
             }
             std::thread::sleep(Duration::from_millis(5));
@@ -185,6 +210,26 @@ impl Kv01Arm {
     /// The latest state of joint `joint` (read by the controller within one cycle).
     pub fn joint(&self, joint: u8) -> Result<JointState, ArmError> {
         self.runtime(joint, |r| r.snapshot(joint))
+    }
+
+    /// The communication modules that latched their 700 ms safety time-out (they answer
+    /// "TO" to everything until power-cycled), by joint.
+    pub fn latched_timeouts(&self) -> Vec<LatchedTimeout> {
+        let st = self.lock();
+        st.joints
+            .iter()
+            .zip(1u8..)
+            .filter_map(|(r, joint)| {
+                let (since, last_answer) = (r.latched_at?, r.last_latched_answer?);
+                Some(LatchedTimeout {
+                    joint,
+                    address: address(joint).map_or(0, |a| a.raw()),
+                    since,
+                    last_answer,
+                    answers_normally_again: r.reading.is_some_and(|x| x.at > last_answer),
+                })
+            })
+            .collect()
     }
 
     /// All six joints, from the same controller cycle or fresher.

@@ -43,6 +43,9 @@ pub(crate) struct JointRuntime {
     pub override_rpm: Option<f64>,
     pub fault: Option<String>,
     pub timeout_latched: Option<String>,
+    /// When this host first saw the module answer "TO", and when it last did.
+    pub latched_at: Option<Instant>,
+    pub last_latched_answer: Option<Instant>,
     pub last_ok: Option<Instant>,
     pub longest_gap: Duration,
     pub commanded_rpm: f64,
@@ -70,10 +73,13 @@ impl JointRuntime {
     }
 
     pub fn latch_timeout(&mut self, e: &Kv01Error) {
+        let now = Instant::now();
         if self.timeout_latched.is_none() {
             tracing::error!("{e}");
             self.timeout_latched = Some(e.to_string());
+            self.latched_at = Some(now);
         }
+        self.last_latched_answer = Some(now);
         self.enabled = false;
         self.motion = None;
         self.override_rpm = None;

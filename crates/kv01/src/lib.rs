@@ -19,7 +19,7 @@ mod framing;
 mod joints;
 mod recover;
 
-pub use arm::{ArmConfig, ArmError, JointState, Kv01Arm};
+pub use arm::{ArmConfig, ArmError, JointState, Kv01Arm, LatchedTimeout};
 pub use axis::Kv01JointAxis;
 pub use bus::{Kv01Bus, Kv01Error};
 pub use framing::scan_reply;

@@ -226,6 +226,18 @@ fn silence_for_700_ms_latches_to_and_the_driver_reports_it() {
     assert!(fault.contains("700 ms") && fault.contains("power-cycle"), "{fault}");
     let err = arm.enable(3).unwrap_err();
     assert!(err.to_string().contains("700 ms"), "{err}");
+    // The latch is typed for the station (one alarm saying what to do), and a power cycle
+    // of the modules shows as normal answers again.
+    let latched = arm.latched_timeouts();
+    let l3 = latched.iter().find(|l| l.joint == 3).unwrap_or_else(|| panic!("{latched:?}"));
+    assert_eq!(l3.address, 0xE3);
+    assert!(!l3.answers_normally_again && l3.since <= l3.last_answer, "{l3:?}");
+    lock(&sim.arm).power_cycle();
+    let t0 = std::time::Instant::now();
+    while !arm.latched_timeouts().iter().all(|l| l.answers_normally_again) {
+        assert!(t0.elapsed() < Duration::from_secs(10), "{:?}", arm.latched_timeouts());
+        std::thread::sleep(Duration::from_millis(20));
+    }
 }
 
 #[test]

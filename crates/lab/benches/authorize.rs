@@ -16,7 +16,7 @@ const T0: UnixMs = UnixMs(1_893_456_000_000);
 fn lab(store: Arc<dyn Store>) -> (Lab, String) {
     let mut c = LabConfig::default();
     c.password.hash = HashParams { memory_kib: 64, iterations: 1, parallelism: 1 };
-    c.student_limits.default = Some(MotionLimits { max_speed: 1.0, max_acceleration: 10.0 });
+    c.student_limits.default = Some(MotionLimits::new(1.0, 10.0));
     let lab = Lab::new(store, c);
     lab.users().add("admin", "admin-password", Role::Admin, T0).unwrap();
     lab.users().add("alice", "alice-password", Role::Student, T0).unwrap();
@@ -32,7 +32,7 @@ fn bench(c: &mut Criterion) {
         command: Command::Axis {
             axis: "x".into(),
             op: AxisOp::Move,
-            demand: Some(MotionDemand { speed: 0.5, acceleration: 5.0 }),
+            demand: Some(MotionDemand::new(0.5, 5.0)),
         },
     };
     let stores: [(&str, Arc<dyn Store>); 2] = [

@@ -83,16 +83,80 @@ impl AxisOp {
 }
 
 /// Peak speed and acceleration a command asks of one axis, in the axis's SI units
-/// (m/s, m/s^2 or rad/s, rad/s^2); signs are ignored.
+/// (m/s, m/s^2 or rad/s, rad/s^2; signs are ignored), and the positions it reaches.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct MotionDemand {
     /// Peak speed.
     pub speed: f64,
     /// Peak acceleration (or deceleration).
     pub acceleration: f64,
+    /// Lowest and highest position the motion reaches (a move: `[target, target]`; a
+    /// program: its path's extent on this axis); `None` when not known in advance (a jog,
+    /// which the machine stops at the limits itself).
+    #[serde(default)]
+    pub range: Option<[f64; 2]>,
 }
 
-/// Upper bounds for student motion on one axis, same units as [`MotionDemand`].
+impl MotionDemand {
+    /// A demand without a known position range (a jog).
+    #[must_use]
+    pub fn new(speed: f64, acceleration: f64) -> Self {
+        MotionDemand { speed, acceleration, range: None }
+    }
+
+    /// A demand that reaches positions `lowest ..= highest`.
+    #[must_use]
+    pub fn within(speed: f64, acceleration: f64, lowest: f64, highest: f64) -> Self {
+        MotionDemand { speed, acceleration, range: Some([lowest, highest]) }
+    }
+
+    /// One line for the audit log: `to=0.25 speed=0.5 acc=5` (a single position),
+    /// `range=[0, 0.5] speed=0.5 acc=5`, or `speed=0.5 acc=5` (no range); numbers with at
+    /// most 6 significant digits.
+    #[must_use]
+    pub fn describe(&self) -> String {
+        let motion = format!("speed={} acc={}", fmt_number(self.speed), fmt_number(self.acceleration));
+        match self.range {
+            // Equal bits, so NaN also prints as a range.
+            Some([lo, hi]) if lo.to_bits() == hi.to_bits() => format!("to={} {motion}", fmt_number(lo)),
+            Some([lo, hi]) => format!("range=[{}, {}] {motion}", fmt_number(lo), fmt_number(hi)),
+            None => motion,
+        }
+    }
+}
+
+/// `v` with at most 6 significant digits, without trailing zeros (`0.25`, `1.15`, `87.266`,
+/// `1000000`, `1.23457e-7`, `NaN`, `inf`).
+fn fmt_number(v: f64) -> String {
+    if !v.is_finite() {
+        return v.to_string();
+    }
+    if v == 0.0 {
+        return "0".to_string();
+    }
+    // Finite and non-zero: the decimal exponent is within -324..=308.
+    let magnitude = v.abs().log10().floor() as i32;
+    if (-4..15).contains(&magnitude) {
+        // Digits after the point for 6 significant digits (none from 100 000 up).
+        let decimals = usize::try_from(5 - magnitude).unwrap_or(0);
+        let s = format!("{v:.decimals$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    } else {
+        let s = format!("{v:.5e}");
+        match s.split_once('e') {
+            Some((mantissa, exp)) if mantissa.contains('.') => {
+                format!("{}e{exp}", mantissa.trim_end_matches('0').trim_end_matches('.'))
+            }
+            _ => s,
+        }
+    }
+}
+
+/// Bounds for student motion on one axis, same units as [`MotionDemand`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MotionLimits {
@@ -100,6 +164,32 @@ pub struct MotionLimits {
     pub max_speed: f64,
     /// Maximum acceleration.
     pub max_acceleration: f64,
+    /// Lowest position a student may reach (`None`: no position bound in this layer).
+    #[serde(default)]
+    pub min: Option<f64>,
+    /// Highest position a student may reach (`None`: no position bound in this layer).
+    #[serde(default)]
+    pub max: Option<f64>,
+}
+
+impl MotionLimits {
+    /// Speed and acceleration bounds without a position range.
+    #[must_use]
+    pub fn new(max_speed: f64, max_acceleration: f64) -> Self {
+        MotionLimits { max_speed, max_acceleration, min: None, max: None }
+    }
+
+    /// Speed, acceleration and position bounds.
+    #[must_use]
+    pub fn with_range(max_speed: f64, max_acceleration: f64, min: f64, max: f64) -> Self {
+        MotionLimits { max_speed, max_acceleration, min: Some(min), max: Some(max) }
+    }
+
+    /// True when the limits bound positions.
+    #[must_use]
+    pub fn bounds_position(&self) -> bool {
+        self.min.is_some() || self.max.is_some()
+    }
 }
 
 /// Student motion limits per axis name (from the station configuration).
@@ -251,13 +341,28 @@ impl Action {
         }
     }
 
-    /// What it acts on, for the audit log (`st1/axis2`, `st1/prog.txt`, `user:bob`...).
+    /// What it acts on and with which parameters, one line for the audit log:
+    /// `st1/x move to=0.25 speed=0.5 acc=5`, `st1/x jog speed=-0.1 acc=2`, `st1/x home`,
+    /// `st1/prog.nc axes: x range=[0, 0.5] speed=0.5 acc=5; y speed=1 acc=2`,
+    /// `st1/prog.txt`, `user:bob`... Numbers have at most 6 significant digits.
     #[must_use]
     pub fn target(&self) -> String {
         match self {
             Action::View { station } | Action::ChangeSafetyConfig { station } => station.clone(),
             Action::Command { station, command } => match command {
-                Command::Axis { axis, .. } => format!("{station}/{axis}"),
+                Command::Axis { axis, op, demand } => {
+                    let mut t = format!("{station}/{axis} {}", op.as_str());
+                    if let Some(d) = demand {
+                        t.push(' ');
+                        t.push_str(&d.describe());
+                    }
+                    t
+                }
+                Command::RunProgram { name, demands } if !demands.is_empty() => {
+                    let axes: Vec<String> =
+                        demands.iter().map(|(axis, d)| format!("{axis} {}", d.describe())).collect();
+                    format!("{station}/{name} axes: {}", axes.join("; "))
+                }
                 Command::RunProgram { name, .. }
                 | Command::Upload { name }
                 | Command::Export { name }
@@ -337,6 +442,18 @@ pub enum DenyReason {
         /// Axis.
         axis: String,
     },
+    /// A student's motion would leave the student position range (or states no range for an
+    /// axis whose student limits bound positions).
+    PositionLimit {
+        /// Axis.
+        axis: String,
+        /// Lowest and highest position asked (`None`: not stated).
+        requested: Option<[f64; 2]>,
+        /// Allowed lowest position.
+        min: f64,
+        /// Allowed highest position.
+        max: f64,
+    },
     /// A move or jog by a student did not state its speed and acceleration.
     MissingMotionDemand {
         /// Axis.
@@ -367,7 +484,19 @@ impl fmt::Display for DenyReason {
             DenyReason::MotionLimit { axis, quantity, requested, limit } => {
                 write!(f, "{axis}: {quantity:?} {requested} exceeds the student limit {limit}")
             }
-            DenyReason::NoMotionLimits { axis } => write!(f, "{axis}: no student motion limits configured"),
+            DenyReason::PositionLimit { axis, requested: Some([lo, hi]), min, max } => {
+                if lo == hi {
+                    write!(f, "{axis}: position {lo} is outside the student range [{min}, {max}]")
+                } else {
+                    write!(f, "{axis}: positions {lo} ..= {hi} leave the student range [{min}, {max}]")
+                }
+            }
+            DenyReason::PositionLimit { axis, requested: None, min, max } => {
+                write!(f, "{axis}: the motion's positions are unknown; the student range is [{min}, {max}]")
+            }
+            DenyReason::NoMotionLimits { axis } => {
+                write!(f, "{axis}: no student limits configured: students cannot move this axis")
+            }
             DenyReason::MissingMotionDemand { axis } => {
                 write!(f, "{axis}: a student's move must state its speed and acceleration")
             }
@@ -407,10 +536,31 @@ fn need(role: Role, required: Role) -> Result<(), Denied> {
     }
 }
 
-fn check_demand(axis: &str, demand: MotionDemand, limits: &StudentLimits) -> Result<(), Denied> {
+/// Checks one demand against the student limits of `axis`. `needs_range`: the motion goes
+/// to stated positions (a move, a program), so an axis whose student limits bound positions
+/// refuses a demand that does not state them.
+fn check_demand(
+    axis: &str,
+    demand: MotionDemand,
+    limits: &StudentLimits,
+    needs_range: bool,
+) -> Result<(), Denied> {
     let Some(lim) = limits.for_axis(axis) else {
         return Err(DenyReason::NoMotionLimits { axis: axis.to_string() }.into());
     };
+    if lim.bounds_position() {
+        let min = lim.min.unwrap_or(f64::NEG_INFINITY);
+        let max = lim.max.unwrap_or(f64::INFINITY);
+        let refuse = |requested| DenyReason::PositionLimit { axis: axis.to_string(), requested, min, max };
+        match demand.range {
+            // NaN fails every comparison: refused.
+            Some([lo, hi]) if !(lo >= min && hi <= max && lo <= hi) => {
+                return Err(refuse(Some([lo, hi])).into());
+            }
+            None if needs_range => return Err(refuse(None).into()),
+            Some(_) | None => {}
+        }
+    }
     for (quantity, requested, limit) in [
         (Quantity::Speed, demand.speed.abs(), lim.max_speed),
         (Quantity::Acceleration, demand.acceleration.abs(), lim.max_acceleration),
@@ -472,13 +622,13 @@ pub fn decide(
                 return Err(DenyReason::StationResetting { station: station.clone() }.into());
             }
             match command {
-                Command::Axis { axis, op: AxisOp::Move | AxisOp::Jog, demand } => match demand {
-                    Some(d) => check_demand(axis, *d, limits),
+                Command::Axis { axis, op: op @ (AxisOp::Move | AxisOp::Jog), demand } => match demand {
+                    Some(d) => check_demand(axis, *d, limits, *op == AxisOp::Move),
                     None => Err(DenyReason::MissingMotionDemand { axis: axis.clone() }.into()),
                 },
-                Command::Axis { axis, demand: Some(d), .. } => check_demand(axis, *d, limits),
+                Command::Axis { axis, demand: Some(d), .. } => check_demand(axis, *d, limits, false),
                 Command::RunProgram { demands, .. } => {
-                    demands.iter().try_for_each(|(axis, d)| check_demand(axis, *d, limits))
+                    demands.iter().try_for_each(|(axis, d)| check_demand(axis, *d, limits, true))
                 }
                 _ => Ok(()),
             }

@@ -8,6 +8,7 @@ use crate::alarm::Alarms;
 use crate::audit::{Audit, AuditEntry, AuditOutcome};
 use crate::authz::{Action, Actor, Authorizer, AuthzError};
 use crate::config::LabConfig;
+use crate::hashing::HashPoolError;
 use crate::limiter::{LoginLimiter, RateLimited};
 use crate::program::Programs;
 use crate::reservation::{Reservation, ReservationError, Reservations};
@@ -25,6 +26,10 @@ pub enum LoginError {
     /// Unknown user or wrong password.
     #[error("wrong user name or password")]
     BadCredentials,
+    /// Every password-hashing worker is busy and its queue is full: no password was
+    /// checked and the attempt was not counted; retry in a moment (HTTP 503).
+    #[error("password checks are busy; retry in a moment")]
+    Busy,
     /// A user-store or hashing failure.
     #[error(transparent)]
     User(UserError),
@@ -160,9 +165,15 @@ impl Lab {
     /// Login: rate limit, password check, session creation; audited as `login` with the
     /// client address as target (also when refused).
     ///
+    /// The attempt is reserved with the limiter before the password is checked (counted as
+    /// a failure until it succeeds), so concurrent attempts cannot exceed the limits. The
+    /// check runs on the users' hashing pool ([`Users::hash_pool`]) and this call waits for
+    /// it; a full pool refuses at once.
+    ///
     /// # Errors
-    /// [`LoginError::RateLimited`] (no password check was made), [`LoginError::BadCredentials`],
-    /// or a storage/hash failure.
+    /// [`LoginError::RateLimited`] (no password check was made), [`LoginError::Busy`] (no
+    /// check was made, the attempt is not counted), [`LoginError::BadCredentials`], or a
+    /// storage/hash failure.
     pub fn login(
         &self,
         name: &str,
@@ -177,14 +188,17 @@ impl Lab {
             target: ip.to_string(),
             outcome,
         };
-        if let Err(limited) = self.limiter.check(name, ip, now) {
-            self.audit_quietly(entry(AuditOutcome::Denied(limited.to_string())));
-            return Err(limited.into());
-        }
+        let attempt = match self.limiter.reserve(name, ip, now) {
+            Ok(a) => a,
+            Err(limited) => {
+                self.audit_quietly(entry(AuditOutcome::Denied(limited.to_string())));
+                return Err(limited.into());
+            }
+        };
         let user = match self.users.verify(name, password, now) {
             Ok(u) => u,
             Err(UserError::BadCredentials) => {
-                let locked = self.limiter.record_failure(name, ip, now);
+                let locked = self.limiter.failed(attempt);
                 let msg = match &locked {
                     Some(l) => format!("wrong user name or password; {l}"),
                     None => "wrong user name or password".to_string(),
@@ -192,12 +206,18 @@ impl Lab {
                 self.audit_quietly(entry(AuditOutcome::Denied(msg)));
                 return Err(LoginError::BadCredentials);
             }
+            Err(UserError::HashPool(HashPoolError::Busy)) => {
+                self.limiter.release(attempt);
+                self.audit_quietly(entry(AuditOutcome::Denied(LoginError::Busy.to_string())));
+                return Err(LoginError::Busy);
+            }
             Err(e) => {
+                self.limiter.release(attempt);
                 self.audit_quietly(entry(AuditOutcome::Error(e.to_string())));
                 return Err(LoginError::User(e));
             }
         };
-        self.limiter.record_success(name, ip, now);
+        self.limiter.succeeded(attempt);
         let session = self.sessions.create(&user, Some(&ip.to_string()), now)?;
         self.audit.append(&entry(AuditOutcome::Ok))?;
         Ok(LoginSuccess { user, session })

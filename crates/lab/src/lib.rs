@@ -3,8 +3,9 @@
 //! of a station by time slot with end-of-slot cleanup, the single authorisation decision,
 //! an audit log, alarms, and the storage behind them (SQLite by default, or memory).
 //!
-//! Pure library: no HTTP, no threads, no clock reads. Every operation takes the current
-//! time as a [`UnixMs`] argument (convert `SystemTime::now()` with `UnixMs::from`).
+//! Pure library: no HTTP, no clock reads, and no threads except the small pool that runs
+//! the Argon2 work ([`hashing`]). Every operation takes the current time as a [`UnixMs`]
+//! argument (convert `SystemTime::now()` with `UnixMs::from`).
 //!
 //! No interface here can set SafeToRun: [`Action`] has no such variant for any role.
 
@@ -14,6 +15,7 @@ pub mod alarm;
 pub mod audit;
 pub mod authz;
 pub mod config;
+pub mod hashing;
 pub mod lab;
 pub mod limiter;
 pub mod password;
@@ -32,8 +34,9 @@ pub use authz::{
     MotionLimits, StudentLimits,
 };
 pub use config::LabConfig;
+pub use hashing::{HashPool, HashPoolError};
 pub use lab::{EndSessionError, EndedSession, Lab, LoginError, LoginSuccess};
-pub use limiter::{LimitKey, LimiterPolicy, LoginLimiter, RateLimited};
+pub use limiter::{Attempt, LimitKey, LimiterPolicy, LoginLimiter, RateLimited};
 pub use password::{HashParams, PasswordPolicy, PolicyViolation};
 pub use program::{ProgramKind, ProgramMeta, Programs};
 pub use reservation::{

@@ -33,11 +33,23 @@ pub struct PasswordPolicy {
     pub max_length: usize,
     /// Argon2id parameters for new hashes.
     pub hash: HashParams,
+    /// Dedicated threads that verify and hash passwords (default 2, at least 1): bounds the
+    /// CPU and memory a burst of logins can take (see [`crate::hashing`]).
+    pub hash_workers: usize,
+    /// Password checks that may wait for a hashing thread (default 4); a login beyond
+    /// workers + queue is refused at once as busy.
+    pub hash_queue: usize,
 }
 
 impl Default for PasswordPolicy {
     fn default() -> Self {
-        PasswordPolicy { min_length: 10, max_length: 256, hash: HashParams::default() }
+        PasswordPolicy {
+            min_length: 10,
+            max_length: 256,
+            hash: HashParams::default(),
+            hash_workers: 2,
+            hash_queue: 4,
+        }
     }
 }
 
@@ -213,7 +225,7 @@ mod tests {
 
     #[test]
     fn policy_rules() {
-        let p = PasswordPolicy { min_length: 10, max_length: 20, hash: FAST };
+        let p = PasswordPolicy { min_length: 10, max_length: 20, hash: FAST, ..PasswordPolicy::default() };
         assert_eq!(p.check("alice", "short"), Err(PolicyViolation::TooShort { length: 5, min: 10 }));
         // 9 characters but 18 bytes: length is counted in characters.
         assert_eq!(p.check("alice", "ééééééééé"), Err(PolicyViolation::TooShort { length: 9, min: 10 }));

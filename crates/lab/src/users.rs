@@ -2,11 +2,13 @@
 //! `motus user add|passwd|role|delete|list`.
 
 use std::fmt;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
 
 use serde::{Deserialize, Serialize};
 
-use crate::password::{self, HashError, PasswordPolicy, PolicyViolation};
+use crate::hashing::{HashPool, HashPoolError};
+use crate::password::{self, HashError, HashParams, PasswordPolicy, PolicyViolation};
 use crate::role::Role;
 use crate::store::{Store, StoreError};
 use crate::time::UnixMs;
@@ -70,6 +72,9 @@ pub enum UserError {
     /// Hashing failed or a stored hash is malformed.
     #[error(transparent)]
     Hash(#[from] HashError),
+    /// The hashing pool refused (busy: retry shortly) or failed.
+    #[error(transparent)]
+    HashPool(#[from] HashPoolError),
     /// Storage failed.
     #[error(transparent)]
     Store(#[from] StoreError),
@@ -94,18 +99,51 @@ pub fn validate_name(name: &str) -> Result<(), UserError> {
     Ok(())
 }
 
-/// User management over a [`Store`].
+/// The password verified for an unknown user name (so that the answer takes as long).
+const DUMMY_PASSWORD: &str = "motus-lab dummy password";
+
+/// User management over a [`Store`]. Every Argon2 computation runs on its [`HashPool`].
 pub struct Users {
     store: Arc<dyn Store>,
     policy: PasswordPolicy,
-    dummy_hash: OnceLock<String>,
+    dummy_hash: Arc<OnceLock<String>>,
+    pool: HashPool,
+    verifications: Arc<AtomicU64>,
 }
 
 impl Users {
-    /// Users in `store`, with `policy` for new passwords.
+    /// Users in `store`, with `policy` for new passwords and for the hashing pool
+    /// (`hash_workers`, `hash_queue`; its threads start at the first hash).
     #[must_use]
     pub fn new(store: Arc<dyn Store>, policy: PasswordPolicy) -> Self {
-        Users { store, policy, dummy_hash: OnceLock::new() }
+        let pool = HashPool::new(policy.hash_workers, policy.hash_queue);
+        Users {
+            store,
+            policy,
+            dummy_hash: Arc::new(OnceLock::new()),
+            pool,
+            verifications: Arc::new(AtomicU64::new(0)),
+        }
+    }
+
+    /// The pool that runs every password hash and check.
+    #[must_use]
+    pub fn hash_pool(&self) -> &HashPool {
+        &self.pool
+    }
+
+    /// Password verifications performed so far (including those of the dummy hash for
+    /// unknown user names).
+    #[must_use]
+    pub fn verifications(&self) -> u64 {
+        self.verifications.load(Ordering::Relaxed)
+    }
+
+    /// Hashes `password` on the pool, waiting for room (administrative work).
+    fn hash(&self, password: &str) -> Result<String, UserError> {
+        let password = password.to_string();
+        let params = self.policy.hash;
+        Ok(self.pool.run(move || password::hash_password(&password, params))??)
     }
 
     /// The password policy in force.
@@ -128,7 +166,7 @@ impl Users {
         let user = User {
             name: name.to_string(),
             role,
-            password_hash: password::hash_password(password, self.policy.hash)?,
+            password_hash: self.hash(password)?,
             created: now,
             updated: now,
         };
@@ -148,7 +186,7 @@ impl Users {
     pub fn passwd(&self, name: &str, password: &str, now: UnixMs) -> Result<(), UserError> {
         let mut user = self.get_existing(name)?;
         self.policy.check(name, password)?;
-        user.password_hash = password::hash_password(password, self.policy.hash)?;
+        user.password_hash = self.hash(password)?;
         user.updated = now;
         self.store.update_user(&user)?;
         let ended = self.store.delete_user_sessions(name)?;
@@ -207,22 +245,46 @@ impl Users {
 
     /// Checks a login. For an unknown name a dummy hash is verified anyway, so the answer
     /// takes about as long as for a known one. A hash made with other parameters than the
-    /// policy's is replaced after a successful check.
+    /// policy's is replaced after a successful check. The check runs on the hashing pool and
+    /// is refused at once when the pool is full.
     ///
     /// # Errors
-    /// [`UserError::BadCredentials`] for an unknown user or a wrong password; a storage or
-    /// hash failure.
+    /// [`UserError::BadCredentials`] for an unknown user or a wrong password;
+    /// [`UserError::HashPool`] with [`HashPoolError::Busy`] when the pool is full (no check
+    /// was made); a storage or hash failure.
     pub fn verify(&self, name: &str, password: &str, now: UnixMs) -> Result<User, UserError> {
-        let Some(mut user) = self.store.get_user(name)? else {
-            let dummy = self.dummy_hash()?;
-            let _ = password::verify_password(password, dummy);
+        let stored = self.store.get_user(name)?;
+        let password = password.to_string();
+        let params = self.policy.hash;
+        let counter = Arc::clone(&self.verifications);
+        let Some(mut user) = stored else {
+            let dummy = Arc::clone(&self.dummy_hash);
+            self.pool.try_run(move || -> Result<(), HashError> {
+                let phc = dummy_hash(&dummy, params)?;
+                counter.fetch_add(1, Ordering::Relaxed);
+                let _ = password::verify_password(&password, phc);
+                Ok(())
+            })??;
             return Err(UserError::BadCredentials);
         };
-        if !password::verify_password(password, &user.password_hash)? {
+        let phc = user.password_hash.clone();
+        let (ok, rehashed) = self.pool.try_run(move || -> Result<(bool, Option<String>), HashError> {
+            counter.fetch_add(1, Ordering::Relaxed);
+            if !password::verify_password(&password, &phc)? {
+                return Ok((false, None));
+            }
+            let rehashed = if password::needs_rehash(&phc, params) {
+                Some(password::hash_password(&password, params)?)
+            } else {
+                None
+            };
+            Ok((true, rehashed))
+        })??;
+        if !ok {
             return Err(UserError::BadCredentials);
         }
-        if password::needs_rehash(&user.password_hash, self.policy.hash) {
-            user.password_hash = password::hash_password(password, self.policy.hash)?;
+        if let Some(new_hash) = rehashed {
+            user.password_hash = new_hash;
             user.updated = now;
             self.store.update_user(&user)?;
             tracing::info!(user = name, "password hash upgraded to current parameters");
@@ -237,12 +299,13 @@ impl Users {
     fn admin_count(&self) -> Result<usize, UserError> {
         Ok(self.store.list_users()?.iter().filter(|u| u.role == Role::Admin).count())
     }
+}
 
-    fn dummy_hash(&self) -> Result<&str, UserError> {
-        if let Some(h) = self.dummy_hash.get() {
-            return Ok(h);
-        }
-        let h = password::hash_password("motus-lab dummy password", self.policy.hash)?;
-        Ok(self.dummy_hash.get_or_init(|| h))
+/// The dummy hash, made at its first use (on a hashing worker).
+fn dummy_hash(cell: &OnceLock<String>, params: HashParams) -> Result<&str, HashError> {
+    if let Some(h) = cell.get() {
+        return Ok(h);
     }
+    let h = password::hash_password(DUMMY_PASSWORD, params)?;
+    Ok(cell.get_or_init(|| h))
 }

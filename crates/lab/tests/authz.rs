@@ -11,7 +11,7 @@ use motus_lab::{
 
 fn limits() -> StudentLimits {
     let mut l = StudentLimits::default();
-    l.axes.insert("x".into(), MotionLimits { max_speed: 1.0, max_acceleration: 10.0 });
+    l.axes.insert("x".into(), MotionLimits::new(1.0, 10.0));
     l
 }
 
@@ -23,7 +23,7 @@ fn mv(axis: &str, speed: f64, acceleration: f64) -> Action {
     cmd(Command::Axis {
         axis: axis.into(),
         op: AxisOp::Move,
-        demand: Some(MotionDemand { speed, acceleration }),
+        demand: Some(MotionDemand::new(speed, acceleration)),
     })
 }
 
@@ -138,7 +138,7 @@ fn student_motion_limits() {
     assert_eq!(e.reason, DenyReason::NoMotionLimits { axis: "y".into() });
     // ... unless a default is configured.
     let mut with_default = limits();
-    with_default.default = Some(MotionLimits { max_speed: 0.2, max_acceleration: 0.2 });
+    with_default.default = Some(MotionLimits::new(0.2, 0.2));
     assert!(decide(&a, &mv("y", 0.1, 0.1), f, &with_default).is_ok());
     assert!(decide(&a, &mv("y", 0.3, 0.1), f, &with_default).is_err());
     // A move or jog must state its demand.
@@ -159,10 +159,7 @@ fn student_motion_limits() {
     let prog = |s| {
         cmd(Command::RunProgram {
             name: "p".into(),
-            demands: vec![
-                ("x".into(), MotionDemand { speed: 0.5, acceleration: 1.0 }),
-                ("x".into(), MotionDemand { speed: s, acceleration: 1.0 }),
-            ],
+            demands: vec![("x".into(), MotionDemand::new(0.5, 1.0)), ("x".into(), MotionDemand::new(s, 1.0))],
         })
     };
     assert!(decide(&a, &prog(0.9), f, &limits()).is_ok());
@@ -247,7 +244,7 @@ fn authorizer_reads_the_slot_from_the_store_and_lab_audits_denials() {
         assert!(denied[0].entry.outcome.message().contains("needs admin"), "{:?}", denied[0]);
         assert_eq!(denied[1].entry.user, "bob");
         assert_eq!(denied[1].entry.action, "command.axis.move");
-        assert_eq!(denied[1].entry.target, "st1/x");
+        assert_eq!(denied[1].entry.target, "st1/x move speed=0.5 acc=5");
         // Allowed actions are audited by the caller with their result.
         lab.record(&alice, &action, Err("drive fault".into()), at(HOUR + 7)).unwrap();
         let errors = lab
@@ -281,5 +278,60 @@ fn station_resetting_until_cleanup_completed() {
         lab.reservations().complete_cleanup(&due[0]).unwrap();
         assert!(lab.authorize(&bob, &action, at(HOUR)).is_ok(), "{name}");
         assert!(lab.authorize(&alice, &action, at(HOUR)).is_err(), "{name}");
+    }
+}
+
+#[test]
+fn audit_targets_carry_the_command_parameters() {
+    let axis = |op, demand| cmd(Command::Axis { axis: "x".into(), op, demand });
+    let to = MotionDemand::within(0.5, 5.0, 0.25, 0.25);
+    assert_eq!(axis(AxisOp::Move, Some(to)).target(), "st1/x move to=0.25 speed=0.5 acc=5");
+    assert_eq!(
+        axis(AxisOp::Move, Some(MotionDemand::within(0.123_456_789, 1e6, -1.15, -1.15))).target(),
+        "st1/x move to=-1.15 speed=0.123457 acc=1000000"
+    );
+    assert_eq!(axis(AxisOp::Jog, Some(MotionDemand::new(-0.1, 2.0))).target(), "st1/x jog speed=-0.1 acc=2");
+    assert_eq!(axis(AxisOp::Home, None).target(), "st1/x home");
+    assert_eq!(
+        axis(AxisOp::Move, Some(MotionDemand::within(f64::NAN, f64::INFINITY, 1e-7, 2.5e12))).target(),
+        "st1/x move range=[1e-7, 2500000000000] speed=NaN acc=inf"
+    );
+    let program = cmd(Command::RunProgram {
+        name: "prog.nc".into(),
+        demands: vec![
+            ("x".into(), MotionDemand::within(0.5, 5.0, 0.0, 0.5)),
+            ("y".into(), MotionDemand::new(1.0, 2.0)),
+        ],
+    });
+    assert_eq!(program.target(), "st1/prog.nc axes: x range=[0, 0.5] speed=0.5 acc=5; y speed=1 acc=2");
+    assert_eq!(
+        cmd(Command::RunProgram { name: "empty.nc".into(), demands: vec![] }).target(),
+        "st1/empty.nc"
+    );
+
+    // Refused and accepted moves are audited with their target position and speed.
+    for (name, lab) in labs() {
+        let admin = Actor::new("admin", Role::Admin);
+        let alice = Actor::new("alice", Role::Student);
+        let far = axis(AxisOp::Move, Some(MotionDemand::within(0.75, 5.0, 1.15, 1.15)));
+        assert!(lab.authorize(&alice, &far, at(0)).is_err(), "{name}");
+        lab.authorize(&admin, &far, at(1)).unwrap();
+        lab.record(&admin, &far, Ok(()), at(1)).unwrap();
+        let log = lab
+            .audit()
+            .query(&AuditQuery { action_prefix: Some("command.".into()), ..AuditQuery::default() })
+            .unwrap();
+        let seen: Vec<(&str, &str, &str)> = log
+            .iter()
+            .map(|r| (r.entry.user.as_str(), r.entry.outcome.kind(), r.entry.target.as_str()))
+            .collect();
+        assert_eq!(
+            seen,
+            [
+                ("admin", "ok", "st1/x move to=1.15 speed=0.75 acc=5"),
+                ("alice", "denied", "st1/x move to=1.15 speed=0.75 acc=5"),
+            ],
+            "{name}"
+        );
     }
 }

@@ -135,3 +135,56 @@ fn login_is_rate_limited_and_audited() {
         assert_eq!(log[0].entry.target, "198.51.100.1");
     }
 }
+
+#[test]
+fn reserved_attempts_count_as_failures_until_settled() {
+    let l = LoginLimiter::new(LimiterPolicy::default());
+    // Five reservations in flight: the fifth starts the lock-out, the sixth is refused.
+    let attempts: Vec<_> = (0..5).map(|k| l.reserve("alice", IP, at(k)).unwrap()).collect();
+    assert!(attempts[..4].iter().all(|a| a.lockout().is_none()));
+    let lock = attempts[4].lockout().unwrap().clone();
+    assert_eq!(lock.key, LimitKey::User("alice".into()));
+    assert_eq!(lock.retry_after, Duration::from_secs(300));
+    let e = l.reserve("alice", ip(2), at(10)).unwrap_err();
+    assert_eq!(e.key, LimitKey::User("alice".into()));
+    // The fifth was not checked after all (busy): its failure and lock-out are given back.
+    let mut attempts = attempts;
+    let fifth = attempts.pop().unwrap();
+    l.release(fifth);
+    assert!(l.check("alice", IP, at(11)).is_ok());
+    // A new attempt takes its place and locks again; failing keeps the lock.
+    let again = l.reserve("alice", IP, at(12)).unwrap();
+    let locked = l.failed(again).unwrap();
+    assert_eq!(locked.retry_after, Duration::from_secs(300));
+    for a in attempts {
+        assert_eq!(l.failed(a), None);
+    }
+    assert!(l.reserve("alice", IP, at(13)).is_err());
+    assert!(l.reserve("alice", IP, at(12 + 300_000)).is_ok());
+}
+
+#[test]
+fn a_reserved_success_gives_the_address_failure_back() {
+    let l = LoginLimiter::new(LimiterPolicy { ip_max_failures: 3, ..LimiterPolicy::default() });
+    // Many successful logins from one address never lock it.
+    for k in 0..10 {
+        let a = l.reserve(&format!("user{k}"), IP, at(k)).unwrap();
+        l.succeeded(a);
+    }
+    assert!(l.check("anyone", IP, at(20)).is_ok());
+    // A success also clears the user name (as record_success).
+    for k in 0..2 {
+        assert_eq!(l.failed(l.reserve("alice", ip(k), at(30)).unwrap()), None);
+    }
+    l.succeeded(l.reserve("alice", ip(7), at(31)).unwrap());
+    for k in 0..4 {
+        assert_eq!(l.failed(l.reserve("alice", ip(10 + k), at(40)).unwrap()), None, "{k}");
+    }
+    // Three failures from one address lock it.
+    let mut last = None;
+    for k in 0..3 {
+        last = l.failed(l.reserve(&format!("x{k}"), ip(50), at(50)).unwrap());
+    }
+    assert_eq!(last.unwrap().key, LimitKey::Ip(ip(50)));
+    assert_eq!(l.reserve("bob", ip(50), at(51)).unwrap_err().key, LimitKey::Ip(ip(50)));
+}

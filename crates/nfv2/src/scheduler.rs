@@ -204,7 +204,10 @@ impl Scheduler {
         let worker = inner.clone();
         let thread = std::thread::Builder::new()
             .name("nfv2-scheduler".into())
-            .spawn(move || run(&worker))
+            .spawn(move || {
+                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
+                run(&worker)
+            })
             .map_err(|e| Nfv2Error::Open { path: "scheduler thread".into(), reason: e.to_string() })?;
         Ok(Scheduler { inner, thread: Mutex::new(Some(thread)) })
     }

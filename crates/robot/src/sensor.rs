@@ -23,6 +23,7 @@ impl SensorReader {
         let stop = Arc::new(AtomicBool::new(false));
         let s = Arc::clone(&stop);
         let thread = std::thread::Builder::new().name("mouse-reader".into()).spawn(move || {
+            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
             let mut stream = ConverterStream::new();
             let mut buf = [0u8; 256];
             while !s.load(Ordering::Relaxed) {

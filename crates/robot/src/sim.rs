@@ -63,6 +63,8 @@ pub struct SimRobot {
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
     mouse_path: Option<PathBuf>,
+    /// Why the drives stopped serving their bus (set when the bus failed).
+    bus_failure: Arc<Mutex<Option<String>>>,
 }
 
 impl SimRobot {
@@ -81,9 +83,12 @@ impl SimRobot {
         let mut threads = Vec::new();
 
         let (d, s) = (Arc::clone(&drives), Arc::clone(&stop));
+        let bus_failure = Arc::new(Mutex::new(None));
+        let failure = Arc::clone(&bus_failure);
         threads.push(spawn("icla-sim", move || {
             if let Err(e) = run_shared(bus, d, s) {
                 tracing::error!(error = %e, "simulated drives stopped");
+                *failure.lock().unwrap_or_else(PoisonError::into_inner) = Some(e.to_string());
             }
         })?);
 
@@ -102,7 +107,14 @@ impl SimRobot {
                 }
             })?);
         }
-        Ok(SimRobot { drives, world, motion, stop, threads, mouse_path })
+        Ok(SimRobot { drives, world, motion, stop, threads, mouse_path, bus_failure })
+    }
+
+    /// Why the drives no longer serve their bus (its transport closed: the hub stopped),
+    /// `None` while they do. A simulator process exits on it, as a drive cut off its bus
+    /// would be restarted.
+    pub fn bus_failure(&self) -> Option<String> {
+        self.bus_failure.lock().unwrap_or_else(PoisonError::into_inner).clone()
     }
 
     /// The true pose (the ground truth odometry tries to estimate).
@@ -148,7 +160,10 @@ impl Drop for SimRobot {
 fn spawn(name: &str, f: impl FnOnce() + Send + 'static) -> Result<JoinHandle<()>, SimRobotError> {
     std::thread::Builder::new()
         .name(name.into())
-        .spawn(f)
+        .spawn(move || {
+            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Simulator);
+            f()
+        })
         .map_err(|e| SimRobotError::Sensor(format!("spawn {name}: {e}")))
 }
 

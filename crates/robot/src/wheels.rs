@@ -198,6 +198,8 @@ fn spawn_watchdog(
 ) {
     let events = master.events();
     let spawned = std::thread::Builder::new().name("robot-watchdog".into()).spawn(move || {
+        // Quick-stops every wheel on a lost heartbeat or an EMCY: a device thread.
+        motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
         while run.load(Ordering::Relaxed) {
             let Ok(event) = events.recv_timeout(Duration::from_millis(50)) else { continue };
             let reason = match event {

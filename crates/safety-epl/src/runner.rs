@@ -274,6 +274,9 @@ impl OnlineSupervisor {
         poll: Duration,
         mut on_event: impl FnMut(&mut Self, &OnlineEvent) -> ControlFlow<()>,
     ) -> io::Result<()> {
+        // The lease must be renewed every cycle: this loop is cyclic work (a no-op unless the
+        // binary set a real-time policy).
+        motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
         let mut buf = vec![0u8; motus_epl::transport::MAX_FRAME];
         while !stop.load(Ordering::Relaxed) {
             let event = match link.recv(&mut buf, poll)? {

@@ -2,21 +2,44 @@
 
 use std::sync::atomic::Ordering;
 use std::sync::PoisonError;
+use std::time::Instant;
 
-use motus_axis::{AxisCommand, Direction, MotionProfile};
+use motus_axis::{AxisCommand, AxisError, Direction, MotionProfile};
 use motus_cell::{GroupHandle, Pattern};
-use motus_gcode::{interpret_with, InterpreterConfig};
 use motus_station::scheduler::ClassState;
 use motus_station_web::{
     AxisAction, AxisLimits, AxisParameters, AxisView, BackendError, Caller, GroupAction, GroupKind,
-    GroupView, MachineBackend, PredictedReach, ProgramCheck, ProgramDiagnostic, ProgramInfo, ProgramStatus,
-    RobotScene, RunState, SafetyView, Sample, SampleBatch, SceneView, SignalView, TaskView,
+    GroupView, MachineBackend, PredictedReach, ProgramCheck, ProgramInfo, ProgramStatus, RobotScene,
+    RunState, SafetyView, Sample, SampleBatch, SceneView, SignalView, TaskView,
 };
 
+use motus_lab::Role;
+use motus_station::config::StudentLimits;
+
+use crate::jog::{JogDecision, JogSpec};
 use crate::{lock, StationMachine};
 
 fn failed(e: impl std::fmt::Display) -> BackendError {
     BackendError::Failed(e.to_string())
+}
+
+/// A device's refusal is the caller's conflict (409), its failure the machine's (500).
+fn axis_error(e: AxisError) -> BackendError {
+    match e {
+        AxisError::InvalidArgument { .. } => BackendError::invalid("command", e.to_string()),
+        AxisError::NotHomed { .. }
+        | AxisError::BeyondLimit { .. }
+        | AxisError::NotEnabled { .. }
+        | AxisError::Unsupported { .. }
+        | AxisError::Refused { .. } => BackendError::State(e.to_string()),
+        other => failed(other),
+    }
+}
+
+/// Callers below an administrator (students; viewers never get this far) are held to the
+/// student limits.
+fn restricted(caller: &Caller) -> bool {
+    caller.role < Role::Admin
 }
 
 impl StationMachine {
@@ -31,14 +54,157 @@ impl StationMachine {
             .ok_or_else(|| BackendError::NotFound { kind: "axis", id: id.to_owned() })
     }
 
-    fn execute(&self, id: &str, command: &AxisCommand) -> Result<(), BackendError> {
-        let entry = self
-            .shared
+    fn entry(&self, id: &str) -> Result<&crate::AxisEntry, BackendError> {
+        self.shared
             .axes
             .iter()
             .find(|a| a.view.id == id)
-            .ok_or_else(|| BackendError::NotFound { kind: "axis", id: id.to_owned() })?;
-        lock(&entry.axis).execute(command).map_err(failed)
+            .ok_or_else(|| BackendError::NotFound { kind: "axis", id: id.to_owned() })
+    }
+
+    /// Executes `command` under the axis's lock. A motion or stop command that the device
+    /// accepted ends the axis's jog lease (it replaced the jog); one it refused leaves the
+    /// lease, so the watchdog still stops a running jog.
+    fn execute(&self, id: &str, command: &AxisCommand) -> Result<(), BackendError> {
+        let entry = self.entry(id)?;
+        let mut axis = lock(&entry.axis);
+        axis.execute(command).map_err(axis_error)?;
+        if !matches!(command, AxisCommand::Enable | AxisCommand::FaultReset) {
+            lock(&self.shared.jogs).end(id);
+        }
+        Ok(())
+    }
+
+    /// The student limits of an axis: refused (fail closed) when the cell file gives it none.
+    fn student_limits(&self, axis: &str) -> Result<StudentLimits, BackendError> {
+        self.shared.config.axis(axis).and_then(|c| c.student).ok_or_else(|| {
+            BackendError::Forbidden(format!(
+                "axis {axis} has no student limits in the cell file: students cannot move it"
+            ))
+        })
+    }
+
+    /// Defence in depth (the lab checked first): a student's command stays within the axis's
+    /// student limits — a move's target in the student range, speed and acceleration within
+    /// the student maxima; an axis without student limits refuses every student command but
+    /// stop. Administrators are held to the machine limits only ([`AxisAction::validate`]).
+    fn check_student(
+        &self,
+        caller: &Caller,
+        view: &AxisView,
+        action: &AxisAction,
+    ) -> Result<(), BackendError> {
+        if !restricted(caller) || matches!(action, AxisAction::Stop) {
+            return Ok(());
+        }
+        let s = self.student_limits(&view.id)?;
+        let (speed, acceleration) = match *action {
+            AxisAction::Move { target, speed, acceleration } => {
+                // NaN fails every comparison: refused.
+                if !(target >= s.limits.min && target <= s.limits.max) {
+                    return Err(BackendError::Forbidden(format!(
+                        "axis {}: target {target} is outside the student range [{}, {}] {}",
+                        view.id, s.limits.min, s.limits.max, view.unit
+                    )));
+                }
+                (speed, acceleration)
+            }
+            AxisAction::Jog { speed, acceleration, .. } => (speed, acceleration),
+            AxisAction::Home | AxisAction::Stop => return Ok(()),
+        };
+        let acceleration = acceleration.unwrap_or(view.acceleration);
+        if speed.is_nan() || speed.abs() > s.max_velocity {
+            return Err(BackendError::Forbidden(format!(
+                "axis {}: speed {speed} exceeds the student limit {} {}/s",
+                view.id, s.max_velocity, view.unit
+            )));
+        }
+        if acceleration.is_nan() || acceleration.abs() > s.max_acceleration {
+            return Err(BackendError::Forbidden(format!(
+                "axis {}: acceleration {acceleration} exceeds the student limit {} {}/s^2",
+                view.id, s.max_acceleration, view.unit
+            )));
+        }
+        Ok(())
+    }
+
+    /// A jog, as a lease renewed by repeated requests (see [`crate::jog`]).
+    ///
+    /// What the drive is commanded:
+    /// - a student's jog is a `MoveAbsolute` toward the student limit in the jog direction
+    ///   (within the current machine limits) at the jog's speed, so it stops at the student
+    ///   range however long it is renewed; it is refused on an axis that is not homed (its
+    ///   position, hence the range, is unknown);
+    /// - an administrator's jog on a homed axis is likewise a `MoveAbsolute` toward the
+    ///   machine's soft limit (the cell file's, or the narrower ones set through the API);
+    ///   on an axis that is not homed, the device's native jog;
+    /// - when the device refuses that end as beyond its own limit (narrower than the cell
+    ///   file's: e.g. the KV-01's joint soft limits), the device's native jog, which stops at
+    ///   that limit, inside the range.
+    ///
+    /// Either way the watchdog stops it with `AxisCommand::Stop` when it is not renewed
+    /// within [`crate::jog::JOG_LEASE`].
+    fn jog(
+        &self,
+        caller: &Caller,
+        view: &AxisView,
+        direction: f64,
+        speed: f64,
+        acceleration: f64,
+    ) -> Result<(), BackendError> {
+        let positive = direction > 0.0;
+        let target = if restricted(caller) {
+            if !view.homed {
+                return Err(BackendError::State(format!(
+                    "axis {} is not homed: its position is unknown, so a student's jog cannot be kept \
+                     within the student range; home it first",
+                    view.id
+                )));
+            }
+            let s = self.student_limits(&view.id)?;
+            Some(if positive { s.limits.max.min(view.limits.max) } else { s.limits.min.max(view.limits.min) })
+        } else if view.homed {
+            Some(if positive { view.limits.max } else { view.limits.min })
+        } else {
+            None
+        };
+        let profile =
+            MotionProfile { velocity: Some(speed), acceleration: Some(acceleration), deceleration: None };
+        let native = AxisCommand::Jog {
+            direction: if positive { Direction::Positive } else { Direction::Negative },
+            profile,
+        };
+        let cmd = match target {
+            Some(target) => AxisCommand::MoveAbsolute { target, profile },
+            None => native.clone(),
+        };
+        let spec = JogSpec { direction: if positive { 1.0 } else { -1.0 }, speed, acceleration, target };
+        let entry = self.entry(&view.id)?;
+        if !view.enabled {
+            let _ = lock(&entry.axis).execute(&AxisCommand::Enable);
+        }
+        // Decided and commanded under the axis's lock (the watchdog re-checks under it too).
+        let mut axis = lock(&entry.axis);
+        if self.shared.estop.load(Ordering::SeqCst) {
+            return Err(BackendError::EStopped);
+        }
+        let decision =
+            lock(&self.shared.jogs).request(&view.id, spec, &caller.user, view.moving, Instant::now());
+        match decision {
+            JogDecision::Renewed => Ok(()),
+            JogDecision::Command => {
+                let result = match axis.execute(&cmd) {
+                    // The device's own limit lies before the range's end: its native jog stops
+                    // at that limit, inside the range.
+                    Err(AxisError::BeyondLimit { .. }) if target.is_some() => axis.execute(&native),
+                    r => r,
+                };
+                result.map_err(|e| {
+                    lock(&self.shared.jogs).command_failed(&view.id);
+                    axis_error(e)
+                })
+            }
+        }
     }
 
     fn juggler_blocks(&self) -> Option<String> {
@@ -56,6 +222,7 @@ impl MachineBackend for StationMachine {
     fn command(&self, caller: &Caller, axis: &str, action: AxisAction) -> Result<(), BackendError> {
         let view = self.view(axis)?;
         action.validate(&view)?;
+        self.check_student(caller, &view, &action)?;
         let motion = !matches!(action, AxisAction::Stop);
         if motion && self.shared.estop.load(Ordering::Relaxed) {
             return Err(BackendError::EStopped);
@@ -79,10 +246,9 @@ impl MachineBackend for StationMachine {
             deceleration: None,
         };
         let cmd = match action {
-            AxisAction::Jog { direction, speed, acceleration } => AxisCommand::Jog {
-                direction: if direction > 0.0 { Direction::Positive } else { Direction::Negative },
-                profile: profile(speed, acceleration),
-            },
+            AxisAction::Jog { direction, speed, acceleration } => {
+                return self.jog(caller, &view, direction, speed, acceleration.unwrap_or(view.acceleration));
+            }
             AxisAction::Move { target, speed, acceleration } => {
                 AxisCommand::MoveAbsolute { target, profile: profile(speed, acceleration) }
             }
@@ -95,7 +261,7 @@ impl MachineBackend for StationMachine {
             }
             AxisAction::Stop => AxisCommand::Stop,
         };
-        if matches!(cmd, AxisCommand::MoveAbsolute { .. } | AxisCommand::Jog { .. }) && !view.enabled {
+        if matches!(cmd, AxisCommand::MoveAbsolute { .. }) && !view.enabled {
             let _ = self.execute(axis, &AxisCommand::Enable);
         }
         self.execute(axis, &cmd)
@@ -135,22 +301,35 @@ impl MachineBackend for StationMachine {
     }
 
     fn estop(&self, caller: &Caller) {
-        tracing::warn!(user = %caller.user, "EMERGENCY STOP");
-        self.shared.estop.store(true, Ordering::Relaxed);
+        tracing::warn!(user = %caller.user, role = caller.role.as_str(), "EMERGENCY STOP");
+        lock(&self.shared.estop_owners).press(crate::stops::Press {
+            user: caller.user.clone(),
+            role: caller.role,
+            at: std::time::SystemTime::now(),
+        });
+        self.shared.estop.store(true, Ordering::SeqCst);
+        lock(&self.shared.jogs).end_all();
         self.programs.service.stop();
         if let Some(j) = self.shared.juggler.as_ref() {
             j.stop_all();
         }
-        for a in &self.shared.axes {
-            if let Err(e) = lock(&a.axis).execute(&AxisCommand::QuickStop) {
-                tracing::warn!(axis = %a.view.id, "quick stop: {e}");
-            }
-        }
+        quick_stop_all(&self.shared);
     }
 
     fn reset(&self, caller: &Caller) -> Result<(), BackendError> {
-        tracing::info!(user = %caller.user, "reset");
-        self.shared.estop.store(false, Ordering::Relaxed);
+        {
+            // Decided and cleared together: a press in between is not lost.
+            let mut owners = lock(&self.shared.estop_owners);
+            if self.shared.estop.load(Ordering::SeqCst) {
+                if let Err(why) = owners.may_reset(caller.role) {
+                    tracing::warn!(user = %caller.user, "reset refused: {why}");
+                    return Err(BackendError::Forbidden(why));
+                }
+            }
+            tracing::info!(user = %caller.user, "reset");
+            owners.clear();
+            self.shared.estop.store(false, Ordering::SeqCst);
+        }
         if let Some(j) = self.shared.juggler.as_ref() {
             j.reset();
         }
@@ -169,7 +348,7 @@ impl MachineBackend for StationMachine {
                 safe_to_run: !estop,
                 held: estop,
                 estop,
-                diagnosis: estop.then(|| "emergency stop".to_owned()),
+                diagnosis: estop.then(|| lock(&self.shared.estop_owners).diagnosis()),
                 rules_name: "none".into(),
                 rules_fingerprint: String::new(),
                 predicted: Vec::new(),
@@ -199,7 +378,7 @@ impl MachineBackend for StationMachine {
             safe_to_run: s.safe_to_run == Some(true) && !s.held && !estop,
             held: s.held || estop,
             estop,
-            diagnosis: if estop { Some("emergency stop".into()) } else { diagnosis },
+            diagnosis: if estop { Some(lock(&self.shared.estop_owners).diagnosis()) } else { diagnosis },
             rules_name: self
                 .shared
                 .config
@@ -230,25 +409,14 @@ impl MachineBackend for StationMachine {
         Ok(self.programs.add(&caller.user, name, text))
     }
 
-    fn programs(&self) -> Vec<ProgramInfo> {
-        lock(&self.programs.store).values().map(|(i, _)| i.clone()).collect()
+    fn programs(&self, caller: &Caller) -> Vec<ProgramInfo> {
+        self.programs.list(caller)
     }
 
-    fn check_program(&self, id: &str) -> Result<ProgramCheck, BackendError> {
-        let text = lock(&self.programs.store)
-            .get(id)
-            .map(|(_, t)| t.clone())
-            .ok_or_else(|| BackendError::NotFound { kind: "program", id: id.to_owned() })?;
-        let config = InterpreterConfig { require_program_end: false, ..InterpreterConfig::default() };
-        let errors = match interpret_with(&text, config) {
-            Ok(_) => Vec::new(),
-            Err(e) => vec![ProgramDiagnostic {
-                line: e.line as usize,
-                col: e.column as usize,
-                message: e.kind.to_string(),
-            }],
-        };
-        Ok(ProgramCheck { errors, demands: Vec::new() })
+    fn check_program(&self, caller: &Caller, id: &str) -> Result<ProgramCheck, BackendError> {
+        let (_, _, check) = self.checked_program(caller, id)?;
+        tracing::info!(user = %caller.user, id, errors = check.errors.len(), "program check");
+        Ok(check)
     }
 
     fn run_program(&self, caller: &Caller, id: &str) -> Result<(), BackendError> {
@@ -259,17 +427,29 @@ impl MachineBackend for StationMachine {
         if matches!(st.state, motus_cnc::ServiceState::Running | motus_cnc::ServiceState::Held) {
             return Err(BackendError::State("a program is running".into()));
         }
-        let text = lock(&self.programs.store)
-            .get(id)
-            .map(|(_, t)| t.clone())
-            .ok_or_else(|| BackendError::NotFound { kind: "program", id: id.to_owned() })?;
-        tracing::info!(user = %caller.user, id, "program run");
-        self.programs
-            .service
-            .run(id, &text)
-            .map_err(|e| BackendError::invalid("program", format!("{}:{}: {}", e.line, e.column, e.kind)))?;
+        // The cached check (the checker's thread interpreted it within its budget).
+        let (_, text, check) = self.checked_program(caller, id)?;
+        if let Some(e) = check.errors.first() {
+            return Err(BackendError::invalid("program", format!("{}:{}: {}", e.line, e.col, e.message)));
+        }
+        self.check_student_program(caller, &check)?;
+        tracing::info!(user = %caller.user, id, demands = ?check.demands, "program run");
+        self.programs.service.run_checked(id, &text);
         *lock(&self.programs.running) = Some(id.to_owned());
         Ok(())
+    }
+
+    fn publish_program(
+        &self,
+        caller: &Caller,
+        id: &str,
+        published: bool,
+    ) -> Result<ProgramInfo, BackendError> {
+        if caller.role != Role::Admin {
+            return Err(BackendError::Forbidden("only administrators publish programs".into()));
+        }
+        tracing::info!(admin = %caller.user, id, published, "program publication");
+        self.programs.publish(id, published)
     }
 
     fn hold_program(&self, _caller: &Caller) -> Result<(), BackendError> {
@@ -443,12 +623,14 @@ impl MachineBackend for StationMachine {
                         format!("{} values for {} axes", targets.len(), g.axes.len()),
                     ));
                 }
-                // Validate every target before moving anything.
+                // Validate every target (machine limits; a student's also against each member's
+                // student range and maxima) before moving anything: a refusal moves nothing.
                 let mut moves = Vec::new();
                 for (a, t) in g.axes.iter().zip(&targets) {
                     let v = self.view(a)?;
                     let action = AxisAction::Move { target: *t, speed: v.default_speed, acceleration: None };
                     action.validate(&v)?;
+                    self.check_student(caller, &v, &action)?;
                     moves.push((a.clone(), action));
                 }
                 for (a, action) in moves {
@@ -488,13 +670,69 @@ impl MachineBackend for StationMachine {
     fn on_slot_end(&self, user: &str) {
         tracing::info!(user, "slot ended: removing programs, stopping and homing");
         self.programs.service.stop();
-        lock(&self.programs.store).retain(|_, (info, _)| info.owner != user);
+        self.programs.remove_owned_by(user);
+        lock(&self.shared.jogs).end_all();
         for a in &self.shared.axes {
             let _ = lock(&a.axis).execute(&AxisCommand::Stop);
         }
         for a in &self.shared.axes {
             if a.view.group.as_deref() != Some("juggler") {
                 let _ = lock(&a.axis).execute(&AxisCommand::Home);
+            }
+        }
+    }
+}
+
+/// How long an E-stop waits for the drives' quick-stop commands to be sent before it
+/// answers; a drive still busy on its bus gets its quick stop as soon as its line is free,
+/// and a failure is logged.
+const ESTOP_CONFIRM_WAIT: std::time::Duration = std::time::Duration::from_millis(250);
+
+/// Quick-stops every axis at once: one short-lived thread per axis (at device priority), so
+/// the slowest line does not delay the others (they used to be stopped one after another:
+/// E-stop answers took p99 ~300 ms on the demo cell). Waits up to [`ESTOP_CONFIRM_WAIT`].
+fn quick_stop_all(shared: &std::sync::Arc<crate::Shared>) {
+    let (tx, rx) = std::sync::mpsc::channel::<(usize, Option<String>)>();
+    let mut pending = 0usize;
+    for i in 0..shared.axes.len() {
+        let s = std::sync::Arc::clone(shared);
+        let tx = tx.clone();
+        let spawned = std::thread::Builder::new().name("motus-estop".into()).spawn(move || {
+            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
+            if let Some(a) = s.axes.get(i) {
+                let r = lock(&a.axis).execute(&AxisCommand::QuickStop);
+                let _ = tx.send((i, r.err().map(|e| e.to_string())));
+            }
+        });
+        match spawned {
+            Ok(_) => pending += 1,
+            Err(e) => {
+                // No thread to be had: stop it from here.
+                tracing::warn!("E-stop thread: {e}; quick-stopping inline");
+                if let Some(a) = shared.axes.get(i) {
+                    if let Err(e) = lock(&a.axis).execute(&AxisCommand::QuickStop) {
+                        tracing::warn!(axis = %a.view.id, "quick stop: {e}");
+                    }
+                }
+            }
+        }
+    }
+    drop(tx);
+    let deadline = std::time::Instant::now() + ESTOP_CONFIRM_WAIT;
+    while pending > 0 {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        match rx.recv_timeout(left) {
+            Ok((i, err)) => {
+                pending -= 1;
+                if let (Some(e), Some(a)) = (err, shared.axes.get(i)) {
+                    tracing::warn!(axis = %a.view.id, "quick stop: {e}");
+                }
+            }
+            Err(_) => {
+                tracing::warn!(
+                    "E-stop: {pending} axes still sending their quick stop after {ESTOP_CONFIRM_WAIT:?}"
+                );
+                break;
             }
         }
     }

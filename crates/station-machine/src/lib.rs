@@ -1,21 +1,29 @@
 //! The station's machine: what `motus serve` and `motus demo` put behind the web layer.
 //!
 //! [`StationMachine::start`] opens a cell ([`motus_cell::open_cell`]: simulators, drivers,
-//! the juggler's supervisor), then runs three threads: a poller that reads every axis every
-//! [`StationOptions::poll`] (the HMI's view, the traced signals, the robot's path), the
+//! the juggler's supervisor), then runs four threads: a poller that reads every axis every
+//! [`StationOptions::poll`] (the HMI's view, the traced signals, the robot's path), the jog
+//! watchdog that stops every jog not renewed within [`jog::JOG_LEASE`] (the dead-man), the
 //! device reconnection ([`motus_station::devices::Reconnector`]: a device that disconnects
 //! is retried with back-off while its axes are faulted and stopped; nothing else stops), and
-//! the CNC program service ([`motus_cnc::ProgramService`]). It implements
-//! [`motus_station_web::MachineBackend`] in [`backend`].
+//! the CNC program service ([`motus_cnc::ProgramService`]). Uploaded programs are checked
+//! on a small pool of checker threads with a bounded queue, within a time and a step budget
+//! ([`ProgramCheckOptions`]; busy: refused at once), never on the web server's threads; a
+//! check measures the path's extent, speed and acceleration per gantry axis, for the machine
+//! travel and the student limits. It implements [`motus_station_web::MachineBackend`] in
+//! [`backend`].
 
 #![forbid(unsafe_code)]
 
 pub mod alarms;
 pub mod backend;
+mod checker;
 pub mod demo;
+pub mod jog;
 mod poller;
 mod programs;
 mod rules;
+mod stops;
 pub mod tasks;
 
 use std::collections::VecDeque;
@@ -32,6 +40,32 @@ use motus_station::config::Cell;
 use motus_station::devices::{Backoff, FaultTable, Reconnector};
 use motus_station_web::{AxisLimits, AxisView};
 use thiserror::Error;
+
+pub use checker::ProgramCheckOptions;
+
+/// Back-off of the device reconnection: 100 ms doubling to 1 s, so a device whose link
+/// came back (a restarted CAN hub: its own back-off is at most 2 s) is brought up again
+/// within a few seconds.
+pub const DEVICE_BACKOFF: Backoff =
+    Backoff { initial: Duration::from_millis(100), max: Duration::from_secs(1) };
+
+/// Logs a device event, one line per state change: a device that stays away is reported
+/// once (its alarm says the rest), not at every attempt.
+fn log_device_event(e: &motus_station::devices::DeviceEvent) {
+    use motus_station::devices::DeviceEvent;
+    match e {
+        DeviceEvent::Connected { device, after_failures } => {
+            tracing::info!(device = %device, after_failures, "device connected");
+        }
+        DeviceEvent::Lost { .. } => {} // the reconnector's own warning
+        DeviceEvent::AttemptFailed { device, failures: 1, error, .. } => {
+            tracing::warn!(device = %device, %error, "device cannot be reached; retrying with back-off");
+        }
+        DeviceEvent::AttemptFailed { device, failures, error, retry_in } => {
+            tracing::debug!(device = %device, failures, %error, ?retry_in, "device still unreachable");
+        }
+    }
+}
 
 /// Why the station could not start.
 #[derive(Debug, Error)]
@@ -50,10 +84,35 @@ pub enum StationError {
     Tasks(#[from] tasks::TasksError),
 }
 
+/// The laboratory configuration of a cell: student limits (position range, speed,
+/// acceleration) from each axis's `student` table and none for an axis without one, so
+/// students cannot move it (fail closed); `secure_cookies` for a station served over HTTPS or
+/// beyond loopback.
+#[must_use]
+pub fn lab_config(cell: &Cell, secure_cookies: bool) -> motus_lab::LabConfig {
+    let mut config = motus_lab::LabConfig::default();
+    for a in &cell.axes {
+        let Some(s) = &a.student else { continue };
+        config.student_limits.axes.insert(
+            a.name.clone(),
+            motus_lab::MotionLimits::with_range(
+                s.max_velocity,
+                s.max_acceleration,
+                s.limits.min,
+                s.limits.max,
+            ),
+        );
+    }
+    config.student_limits.default = None;
+    config.sessions.cookie.secure = secure_cookies;
+    config
+}
+
 /// Options of the station.
 #[derive(Clone)]
 pub struct StationOptions {
-    /// How the cell runs.
+    /// How the cell runs (by default without `require_devices`: the station starts with
+    /// absent devices and connects them when they appear).
     pub cell: CellOptions,
     /// Period of the axis poller (HMI view and traces).
     pub poll: Duration,
@@ -62,6 +121,8 @@ pub struct StationOptions {
     /// Where the runtime's alarms go besides [`StationMachine::alarms`] (the station's
     /// [`alarms::LabAlarmSink`], so the HMI lists them).
     pub alarm_sink: Option<Arc<dyn AlarmSink>>,
+    /// The program checker: workers, queue, time and step budgets.
+    pub program_checks: ProgramCheckOptions,
 }
 
 impl std::fmt::Debug for StationOptions {
@@ -71,6 +132,7 @@ impl std::fmt::Debug for StationOptions {
             .field("poll", &self.poll)
             .field("camera_url", &self.camera_url)
             .field("alarm_sink", &self.alarm_sink.is_some())
+            .field("program_checks", &self.program_checks)
             .finish()
     }
 }
@@ -78,10 +140,13 @@ impl std::fmt::Debug for StationOptions {
 impl Default for StationOptions {
     fn default() -> Self {
         Self {
-            cell: CellOptions::default(),
+            // The station starts with absent devices: they are marked disconnected (axes
+            // faulted, an alarm) and connected by the reconnection when they appear.
+            cell: CellOptions { require_devices: false, ..CellOptions::default() },
             poll: Duration::from_millis(50),
             camera_url: None,
             alarm_sink: None,
+            program_checks: ProgramCheckOptions::default(),
         }
     }
 }
@@ -125,6 +190,10 @@ pub(crate) struct Shared {
     pub(crate) recorder: std::sync::OnceLock<Arc<Mutex<motus_station::trace::Recorder>>>,
     pub(crate) robot_path: Mutex<VecDeque<[f64; 2]>>,
     pub(crate) estop: AtomicBool,
+    /// Who pressed the E-stop since the last reset.
+    pub(crate) estop_owners: Mutex<stops::EStopOwners>,
+    /// Jog leases (the dead-man; [`jog`]).
+    pub(crate) jogs: Mutex<jog::JogLeases>,
     pub(crate) faults: Arc<FaultTable>,
     pub(crate) alarms: Arc<MemoryAlarms>,
     pub(crate) epoch: Instant,
@@ -218,6 +287,8 @@ impl StationMachine {
             recorder: std::sync::OnceLock::new(),
             robot_path: Mutex::new(VecDeque::new()),
             estop: AtomicBool::new(false),
+            estop_owners: Mutex::new(stops::EStopOwners::default()),
+            jogs: Mutex::new(jog::JogLeases::default()),
             faults: Arc::clone(&faults),
             alarms: Arc::clone(&alarms),
             epoch: Instant::now(),
@@ -235,29 +306,37 @@ impl StationMachine {
         {
             let s = Arc::clone(&shared);
             let poll = options.poll;
-            threads.push(
-                std::thread::Builder::new()
-                    .name("motus-poller".into())
-                    .spawn(move || poller::run(&s, poll))?,
-            );
+            threads.push(std::thread::Builder::new().name("motus-poller".into()).spawn(move || {
+                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
+                poller::run(&s, poll)
+            })?);
         }
         {
             let s = Arc::clone(&shared);
-            let mut rec = Reconnector::new(Backoff::default(), sink, faults);
+            threads.push(std::thread::Builder::new().name("motus-jog-watchdog".into()).spawn(move || {
+                // The dead-man of every jog: a device thread.
+                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
+                jog::run_watchdog(&s)
+            })?);
+        }
+        {
+            let s = Arc::clone(&shared);
+            let mut rec = Reconnector::new(DEVICE_BACKOFF, sink, faults);
             for h in handles {
                 rec.add(h);
             }
             threads.push(std::thread::Builder::new().name("motus-reconnect".into()).spawn(move || {
+                // Health checks are bus transactions with time-outs: a device thread.
+                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
                 while !s.stop.load(Ordering::Relaxed) {
-                    let events = rec.poll(Instant::now());
-                    for e in events {
-                        tracing::info!("device: {e:?}");
+                    for e in rec.poll(Instant::now()) {
+                        log_device_event(&e);
                     }
                     std::thread::sleep(Duration::from_millis(100));
                 }
             })?);
         }
-        let programs = programs::Programs::start()?;
+        let programs = programs::Programs::start(cell, options.program_checks)?;
         Ok(Self { shared, programs, camera_url: options.camera_url, threads, tasks })
     }
 
@@ -322,6 +401,8 @@ impl StationMachine {
             }
         }
         self.shared.stop.store(true, Ordering::Relaxed);
+        // A program check in progress ends at its next line.
+        self.programs.checker.stop();
         for t in self.threads.drain(..) {
             let _ = t.join();
         }

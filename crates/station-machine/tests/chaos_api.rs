@@ -21,11 +21,9 @@ fn a_simulator_killed_in_motion_faults_only_its_axes_and_comes_back_through_the_
     let c = Client::login(&addr, "admin", "admin-password-1");
 
     // Home a PS1A module and a gantry axis, then move both.
+    // Devices connect in the background after the station starts: `home` waits for them.
     for id in ["linear1", "y"] {
-        c.ok("POST", &format!("/api/axes/{id}/home"), Value::Null);
-    }
-    for id in ["linear1", "y"] {
-        c.wait_axis(id, Duration::from_secs(30), "homed", |a| a["homed"] == true && a["moving"] == false);
+        c.home(id);
     }
     let frames_before = machine.with_cell(|rc| rc.juggler().unwrap().snapshot().frames);
     c.move_to("linear1", 0.3);

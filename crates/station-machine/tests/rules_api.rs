@@ -106,8 +106,7 @@ fn an_admin_installs_approved_rules_and_a_student_cannot() {
     assert_eq!(code, 409, "{v}");
     admin.ok("PUT", "/api/axes/y/parameters", narrow);
     assert_eq!(admin.axis("y")["limits"]["max"], 0.2);
-    admin.ok("POST", "/api/axes/y/home", Value::Null);
-    admin.wait_axis("y", Duration::from_secs(10), "homed", |a| a["homed"] == true && a["moving"] == false);
+    admin.home("y");
     let (code, v) = admin.call("POST", "/api/axes/y/move", json!({ "target": 0.3, "speed": 0.05 }));
     assert_eq!(code, 400, "{v}");
     admin.ok("POST", "/api/axes/y/move", json!({ "target": 0.15, "speed": 0.05 }));

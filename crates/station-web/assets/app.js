@@ -3,11 +3,17 @@
 // with the session cookie and the X-CSRF-Token header.
 'use strict';
 
-const S = {
-  session: null, ws: null, signals: [], picked: new Set(['x.position', 'y.position']),
-  plot: [], axes: [], axisIds: '', groups: [], program: null, frames: 0, lastRateAt: performance.now(),
-  slot: null, reservations: [], lastFrame: null, jogTimers: {},
-};
+// Group ids and kinds come from GET /api/groups (the station's cell names them): the HMI
+// never names a group itself.
+const S = {};
+function resetState() {
+  Object.assign(S, {
+    session: null, ws: null, signals: [], picked: new Set(['x.position', 'y.position']),
+    plot: [], axes: [], axisIds: '', groups: [], program: null, frames: 0, lastRateAt: performance.now(),
+    slot: null, reservations: [], lastFrame: null, jogTimers: {}, alarmKey: null,
+  });
+}
+resetState();
 const PLOT_SECONDS = 10;
 const $ = (id) => document.getElementById(id);
 
@@ -28,7 +34,12 @@ function say(text, isError) {
   m.className = 'message' + (isError ? ' error' : '');
 }
 
+// Bumped at every login and logout: the answer to a request of an earlier session is dropped
+// (a late 401 must not log out the next user; late data must not fill the emptied panels).
+let epoch = 0;
+
 async function api(method, path, body) {
+  const mine = epoch;
   const headers = {};
   if (body !== undefined) headers['Content-Type'] = 'application/json';
   if (method !== 'GET' && S.session) headers['X-CSRF-Token'] = S.session.csrf_token;
@@ -38,6 +49,7 @@ async function api(method, path, body) {
   });
   let data = null;
   try { data = await r.json(); } catch (_) { data = null; }
+  if (mine !== epoch) { const e = new Error('the session changed'); e.stale = true; throw e; }
   if (!r.ok) {
     const d = data && data.detail;
     const text = d && typeof d === 'object' ? (d.message || JSON.stringify(d)) : (d || r.statusText);
@@ -51,24 +63,51 @@ async function api(method, path, body) {
 
 async function act(label, f) {
   try { const r = await f(); say(label + ': ok'); return r; }
-  catch (e) { say(label + ': ' + e.message, true); return null; }
+  catch (e) { if (!e.stale) say(label + ': ' + e.message, true); return null; }
 }
 
 const fmt = (v, d = 4) => (typeof v === 'number' ? v.toFixed(d) : '-');
 const hhmm = (ms) => new Date(ms).toLocaleTimeString([], { hour: '2-digit', minute: '2-digit' });
 
 // ---------- session ----------
+// Logged out: only the login form shows; the live stream is closed and every panel emptied,
+// so nothing of the previous session stays on the screen.
 function showLogin() {
-  S.session = null;
-  if (S.ws) { try { S.ws.close(); } catch (_) {} S.ws = null; }
-  $('login-panel').hidden = false; $('app').hidden = true; $('logout-btn').hidden = true;
-  $('who').textContent = '';
+  epoch++;
+  stopAllJogs(true);
+  const ws = S.ws;
+  S.session = null; S.ws = null; // the closing socket's handlers see they are stale
+  if (ws) { try { ws.close(); } catch (_) {} }
+  clearPanels();
+  resetState();
+  document.querySelectorAll('[data-session]').forEach((e) => { e.hidden = true; });
+  $('login-user').value = ''; $('login-password').value = '';
+  $('login-panel').hidden = false;
+}
+
+function clearPanels() {
+  for (const id of ['axes-rows', 'arm-sliders', 'pantilt-groups', 'alarm-rows', 'reservation-rows', 'slot-list',
+    'predicted-rows', 'program-errors', 'task-rows', 'audit-rows', 'user-rows', 'signal-picks', 'camera',
+    'juggler-program']) $(id).replaceChildren();
+  for (const id of ['station-name', 'mode-note', 'who', 'message', 'slot-status', 'rules-name', 'rules-fp',
+    'program-line-text', 'robot-pose', 'robot-group']) $(id).textContent = '';
+  $('safe-badge').textContent = 'SafeToRun ?'; $('safe-badge').className = 'badge unknown';
+  $('safe-text').textContent = '?'; $('diagnosis').textContent = '-'; $('juggler-current').textContent = '-';
+  $('program-state').textContent = 'idle'; $('program-percent').textContent = '0'; $('program-line').textContent = '0';
+  $('program-progress').value = 0; $('frame-rate').textContent = '0';
+  for (const id of ['plot', 'scene', 'robot-map']) { const c = $(id); c.getContext('2d').clearRect(0, 0, c.width, c.height); }
+  for (const id of ['robot-panel', 'pantilt-panel', 'arm-panel', 'juggler-box']) $(id).hidden = true;
+  // What the previous user typed goes too (their program, the rules draft, a new password).
+  for (const id of ['program-name', 'program-text', 'program-file', 'jog-fraction', 'rules-text', 'new-user', 'new-password']) {
+    const e = $(id); e.value = e.defaultValue || '';
+  }
 }
 
 async function loadSession() {
   try { S.session = await api('GET', '/api/session'); }
   catch (_) { showLogin(); return; }
-  $('login-panel').hidden = true; $('app').hidden = false; $('logout-btn').hidden = false;
+  document.querySelectorAll('[data-session]').forEach((e) => { e.hidden = false; });
+  $('login-panel').hidden = true;
   $('who').textContent = `${S.session.user} (${S.session.role})`;
   $('station-name').textContent = S.session.station;
   const admin = S.session.role === 'admin';
@@ -89,7 +128,7 @@ function canCommand() {
 
 function applyMode() {
   const can = canCommand();
-  document.querySelectorAll('button.cmd, #axes-rows button, #axes-rows input, #robot-map')
+  document.querySelectorAll('button.cmd, #axes-rows button, #axes-rows input, #robot-map, #pantilt-groups input, #arm-sliders input')
     .forEach((b) => { if (b.tagName === 'CANVAS') b.dataset.disabled = can ? '' : '1'; else b.disabled = !can; });
   $('estop-btn').disabled = !S.session || S.session.role === 'viewer';
   const note = $('mode-note');
@@ -169,7 +208,7 @@ function jogOnce(id, dir) {
   const a = S.axes.find((x) => x.id === id); if (!a) return Promise.resolve();
   const f = Math.min(1, Math.max(0.05, Number($('jog-fraction').value) || 0.5));
   return api('POST', `/api/axes/${id}/jog`, { direction: dir, speed: a.limits.max_speed * f })
-    .catch((e) => { say(`Jog ${id}: ${e.message}`, true); stopJog(id, true); });
+    .catch((e) => { if (e.stale) return; say(`Jog ${id}: ${e.message}`, true); stopJog(id, true); });
 }
 function startJog(id, dir) {
   stopJog(id, true);
@@ -182,6 +221,9 @@ function stopJog(id, quiet) {
     if (!quiet) api('POST', `/api/axes/${id}/stop`).catch(() => {});
   }
 }
+// Releasing the button is not the only way a hold ends: the window loses focus, the tab is
+// hidden, the user logs out. The station stops a jog that is not renewed anyway (dead-man).
+function stopAllJogs(quiet) { for (const id of Object.keys(S.jogTimers || {})) stopJog(id, quiet); }
 
 function renderAxes(axes) {
   S.axes = axes;
@@ -225,6 +267,8 @@ function showCheck(check) {
 // ---------- plot ----------
 function buildPicks() {
   const box = $('signal-picks'); box.replaceChildren();
+  // The station's signals, not names the HMI guesses: the first two when none picked is there.
+  if (!S.signals.some((s) => S.picked.has(s.id))) S.picked = new Set(S.signals.slice(0, 2).map((s) => s.id));
   for (const s of S.signals) {
     const cb = el('input', { type: 'checkbox', 'data-testid': `pick-${s.id}` });
     cb.checked = S.picked.has(s.id);
@@ -311,17 +355,41 @@ function drawRobot(r) {
 }
 
 function robotClick(ev) {
+  const g = groupsOfKind('robot')[0]; if (!g) return;
   const { c, b, s } = robotFrame();
   if (c.dataset.disabled === '1') { say('Read-only: no slot of yours', true); return; }
   const rect = c.getBoundingClientRect();
   const px = (ev.clientX - rect.left) * (c.width / rect.width), py = (ev.clientY - rect.top) * (c.height / rect.height);
   const x = px / s + b[0], y = (c.height - py) / s + b[1];
-  const th = S.lastFrame ? S.lastFrame.scene.robot.pose[2] : 0;
-  act('Robot go-to', () => api('POST', '/api/groups/robot', { action: 'go_to', targets: [x, y, th] }));
+  const robot = S.lastFrame && S.lastFrame.scene && S.lastFrame.scene.robot;
+  const th = robot ? robot.pose[2] : 0;
+  act(`Robot ${g.id} go-to`, () => api('POST', `/api/groups/${encodeURIComponent(g.id)}`, { action: 'go_to', targets: [x, y, th] }));
 }
 
-// ---------- groups (pan-tilt, arm) ----------
-async function loadGroups() { try { S.groups = await api('GET', '/api/groups'); } catch (_) { S.groups = []; } buildJuggler(); }
+// ---------- groups (robot, pan-tilt, arm, juggler), as the station names them ----------
+const groupsOfKind = (kind) => S.groups.filter((g) => g.kind === kind);
+
+async function loadGroups() {
+  try { S.groups = await api('GET', '/api/groups'); } catch (_) { S.groups = []; }
+  const robot = groupsOfKind('robot')[0];
+  $('robot-panel').hidden = !robot; $('robot-group').textContent = robot ? robot.id : '';
+  buildPanTilt(); buildJuggler(); buildArm(S.axes);
+}
+
+// One target row per pan-tilt group: one input per member axis, in the group's order.
+function buildPanTilt() {
+  const box = $('pantilt-groups'); box.replaceChildren();
+  const groups = groupsOfKind('pan_tilt'); $('pantilt-panel').hidden = !groups.length;
+  for (const g of groups) {
+    const inputs = g.axes.map((id, i) => el('input', { type: 'number', step: '0.1', value: i === 0 ? '0.5' : '0.2',
+      id: `pantilt-target-${id}`, 'data-testid': `pantilt-target-${id}` }));
+    box.append(el('fieldset', { class: 'group-box', 'data-testid': `pantilt-${g.id}` }, el('legend', { text: g.id }),
+      ...g.axes.map((id, i) => el('label', { text: `${id} (rad) ` }, inputs[i])),
+      el('button', { text: 'Go', class: 'cmd', 'data-testid': `pantilt-go-${g.id}`, on: { click: () => act(`Pan-tilt ${g.id}`,
+        () => api('POST', `/api/groups/${encodeURIComponent(g.id)}`, { action: 'go_to', targets: inputs.map((x) => Number(x.value)) })) } })));
+  }
+  applyMode();
+}
 
 // The juggler's programs (a student's program is guarded by the supervisor like any motion).
 function buildJuggler() {
@@ -333,16 +401,27 @@ function buildJuggler() {
   $('juggler-current').textContent = g.program || '-';
 }
 
+// One slider per joint of each arm group, and its "Move joints" button.
 function buildArm(axes) {
-  const g = S.groups.find((x) => x.kind === 'arm'); const box = $('arm-sliders'); box.replaceChildren();
-  if (!g) return;
-  for (const id of g.axes) {
-    const a = axes.find((x) => x.id === id); if (!a) continue;
-    const out = el('span', { text: fmt(a.position, 2) });
-    const r = el('input', { type: 'range', min: a.limits.min, max: a.limits.max, step: '0.01', value: a.position, id: `arm-${id}`, 'data-testid': `arm-${id}` });
-    r.addEventListener('input', () => { out.textContent = Number(r.value).toFixed(2); });
-    box.append(el('div', {}, el('label', { text: `${id} ` }), r, ' ', out));
+  const box = $('arm-sliders'); box.replaceChildren();
+  const groups = groupsOfKind('arm'); $('arm-panel').hidden = !groups.length;
+  for (const g of groups) {
+    const sliders = [];
+    const rows = [];
+    for (const id of g.axes) {
+      const a = (axes || []).find((x) => x.id === id); if (!a) continue;
+      const out = el('span', { text: fmt(a.position, 2), 'data-testid': `arm-value-${id}` });
+      const r = el('input', { type: 'range', min: a.limits.min, max: a.limits.max, step: '0.01', value: a.position, id: `arm-${id}`, 'data-testid': `arm-${id}` });
+      r.addEventListener('input', () => { out.textContent = Number(r.value).toFixed(2); });
+      sliders.push(r);
+      rows.push(el('div', {}, el('label', { text: `${id} ` }), r, ' ', out));
+    }
+    if (sliders.length !== g.axes.length) continue; // axes not known yet: built again with them
+    box.append(el('fieldset', { class: 'group-box', 'data-testid': `arm-group-${g.id}` }, el('legend', { text: g.id }), ...rows,
+      el('button', { text: 'Move joints', class: 'cmd', 'data-testid': `arm-go-${g.id}`, on: { click: () => act(`Arm ${g.id}`,
+        () => api('POST', `/api/groups/${encodeURIComponent(g.id)}`, { action: 'go_to', targets: sliders.map((x) => Number(x.value)) })) } })));
   }
+  applyMode();
 }
 
 // ---------- cyclic tasks ----------
@@ -360,14 +439,21 @@ async function loadTasks() {
 }
 
 // ---------- alarms, audit, users, camera ----------
+// The list arrives in every frame (20/s) but is redrawn only when an alarm came, went, was
+// cleared or acknowledged: a button rebuilt under the pointer between press and release
+// would never receive its click. The Ack click is delegated to the table (wire()).
 function renderAlarms(list) {
+  list = list || [];
+  const key = JSON.stringify(list.map((a) => [a.id, a.cleared_at, a.acknowledged ? a.acknowledged.by : null]))
+    + (S.session ? S.session.role : '');
+  if (key === S.alarmKey) return;
+  S.alarmKey = key;
   const rows = $('alarm-rows'); rows.replaceChildren();
-  for (const a of list || []) {
-    rows.append(el('tr', { 'data-testid': `alarm-${a.code}` }, el('td', { text: hhmm(a.raised_at) }), el('td', { text: a.code }),
+  for (const a of list) {
+    rows.append(el('tr', { 'data-testid': `alarm-${a.code}`, 'data-alarm-id': a.id }, el('td', { text: hhmm(a.raised_at) }), el('td', { text: a.code }),
       el('td', { text: a.source }), el('td', { text: a.message + (a.cleared_at ? ' (cleared)' : '') }),
       el('td', {}, a.acknowledged ? `ack ${a.acknowledged.by}` : el('button', { text: 'Ack', 'data-testid': `ack-${a.id}`,
-        disabled: !S.session || S.session.role === 'viewer',
-        on: { click: () => act('Acknowledge', () => api('POST', `/api/alarms/${a.id}/ack`)) } }))));
+        'data-ack': a.id, disabled: !S.session || S.session.role === 'viewer' }))));
   }
 }
 async function loadAlarms() { try { renderAlarms((await api('GET', '/api/alarms')).active); } catch (_) {} }
@@ -403,10 +489,11 @@ async function loadCamera() {
 
 // ---------- WebSocket ----------
 function connect() {
-  if (S.ws) return;
+  if (S.ws || !S.session) return;
   const ws = new WebSocket(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/api/ws`);
   S.ws = ws;
   ws.onmessage = (ev) => {
+    if (S.ws !== ws) return; // a frame of a closed (logged-out) stream
     const f = JSON.parse(ev.data);
     if (f.type === 'hello') { S.signals = f.signals; buildPicks(); return; }
     if (f.type === 'logout') { say('Session ended', true); showLogin(); return; }
@@ -422,20 +509,31 @@ function connect() {
     const now = performance.now();
     if (now - S.lastRateAt >= 1000) { $('frame-rate').textContent = (S.frames * 1000 / (now - S.lastRateAt)).toFixed(1); S.frames = 0; S.lastRateAt = now; }
   };
-  ws.onclose = () => { S.ws = null; if (S.session) setTimeout(connect, 1000); };
+  ws.onclose = () => { if (S.ws !== ws) return; S.ws = null; if (S.session) setTimeout(connect, 1000); };
 }
 
 // ---------- wiring ----------
 function wire() {
   $('login-form').addEventListener('submit', async (ev) => {
     ev.preventDefault(); $('login-error').textContent = '';
+    epoch++;
     try {
       const r = await api('POST', '/api/login', { user: $('login-user').value, password: $('login-password').value });
       S.session = { csrf_token: r.csrf_token }; $('login-password').value = '';
       await loadSession();
     } catch (e) { $('login-error').textContent = e.message; }
   });
-  $('logout-btn').addEventListener('click', async () => { await act('Logout', () => api('POST', '/api/logout')); showLogin(); });
+  $('logout-btn').addEventListener('click', async () => {
+    stopAllJogs(false);
+    try { await api('POST', '/api/logout'); } catch (_) { /* the session is gone either way */ }
+    showLogin();
+  });
+  window.addEventListener('blur', () => stopAllJogs(false));
+  document.addEventListener('visibilitychange', () => { if (document.hidden) stopAllJogs(false); });
+  $('alarm-rows').addEventListener('click', (ev) => {
+    const b = ev.target.closest('button[data-ack]'); if (!b || b.disabled) return;
+    act('Acknowledge', () => api('POST', `/api/alarms/${b.dataset.ack}/ack`)).then(loadAlarms);
+  });
   $('estop-btn').addEventListener('click', () => act('E-STOP', () => api('POST', '/api/estop')));
   $('reset-btn').addEventListener('click', () => act('Reset', () => api('POST', '/api/reset')));
   $('program-file').addEventListener('change', async (ev) => {
@@ -454,12 +552,6 @@ function wire() {
   $('program-resume').addEventListener('click', () => act('Resume', () => api('POST', '/api/programs/resume')));
   $('program-stop').addEventListener('click', () => act('Stop', () => api('POST', '/api/programs/stop')));
   $('robot-map').addEventListener('click', robotClick);
-  $('pantilt-go').addEventListener('click', () => act('Pan-tilt', () => api('POST', '/api/groups/pan_tilt',
-    { action: 'go_to', targets: [Number($('pan-target').value), Number($('tilt-target').value)] })));
-  $('arm-go').addEventListener('click', () => {
-    const g = S.groups.find((x) => x.kind === 'arm'); if (!g) return;
-    act('Arm', () => api('POST', `/api/groups/${g.id}`, { action: 'go_to', targets: g.axes.map((id) => Number($(`arm-${id}`).value)) }));
-  });
   $('juggler-run').addEventListener('click', async () => {
     const g = S.groups.find((x) => x.programs && x.programs.length); if (!g) return;
     await act('Juggler program', () => api('POST', `/api/groups/${g.id}`, { action: 'run', program: $('juggler-program').value }));
@@ -469,7 +561,8 @@ function wire() {
   $('audit-refresh').addEventListener('click', loadAudit);
   $('user-form').addEventListener('submit', (ev) => {
     ev.preventDefault();
-    act('Add user', () => api('POST', '/api/users', { name: $('new-user').value, password: $('new-password').value, role: $('new-role').value })).then(loadUsers);
+    act('Add user', () => api('POST', '/api/users', { name: $('new-user').value, password: $('new-password').value, role: $('new-role').value }))
+      .then((r) => { if (r) { $('new-user').value = ''; $('new-password').value = ''; } loadUsers(); });
   });
   setInterval(() => { if (S.session && S.session.role === 'admin') loadAudit(); }, 5000);
   setInterval(loadTasks, 2000);

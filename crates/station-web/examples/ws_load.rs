@@ -1,50 +1,31 @@
-//! Load measurement: N WebSocket clients (default 50) on a station streaming at 20 Hz.
-//! Reports the server's CPU use (from /proc/<pid>/stat of the server process: utime +
-//! stime over the window), the frame rate each client gets, the update latency (client
-//! receive time minus the frame's server time stamp; same host clock) p50/p99/max, and
-//! the HMI first-load time (GET / + /app.js + /style.css on a fresh connection).
+//! Load measurement against a running station (e.g. `motus demo`): N WebSocket clients
+//! (default 50) on its state stream. Reports the frame rate each client gets, the update
+//! latency (client receive time minus the frame's server time stamp; same host clock)
+//! p50/p99/max, the HMI first-load time (GET / + /app.js + /style.css on a fresh
+//! connection) and, with `--pid`, the server's CPU use (from /proc/<pid>/stat: utime +
+//! stime over the window).
 //!
 //! ```text
-//! cargo run --release -p motus-station-web --example ws_load -- [--clients 50] [--secs 10] [--rate 20]
+//! cargo run --release -p motus-station-web --example ws_load -- --url http://127.0.0.1:8080 \
+//!     --user admin --password <password> [--pid <station pid>] [--clients 50] [--secs 10]
 //! ```
-//! The server runs in a child process (this binary with `--serve`) so its CPU is measured
-//! alone.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
-use std::sync::Arc;
+use std::process::Command;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use futures_util::StreamExt;
-use motus_lab::{HashParams, Lab, LabConfig, MemoryStore, Role, UnixMs};
-use motus_station_web::{start, FakeBackend, WebConfig};
 use tokio_tungstenite::tungstenite::client::IntoClientRequest;
 use tokio_tungstenite::tungstenite::Message;
 
-const PW: &str = "load-password-1";
-
-fn arg(name: &str, default: f64) -> f64 {
+/// The value after `name` on the command line.
+fn arg_str(name: &str) -> Option<String> {
     let args: Vec<String> = std::env::args().collect();
-    args.iter().position(|a| a == name).and_then(|i| args.get(i + 1)).map_or(default, |v| v.parse().unwrap())
+    args.iter().position(|a| a == name).and_then(|i| args.get(i + 1)).cloned()
 }
 
-fn serve(rate: f64) {
-    let mut cfg = LabConfig::default();
-    cfg.sessions.cookie.secure = false;
-    cfg.password.hash = HashParams { memory_kib: 64, iterations: 1, parallelism: 1 };
-    let lab = Arc::new(Lab::new(Arc::new(MemoryStore::new()), cfg));
-    lab.users().add("load", PW, Role::Viewer, UnixMs::from(SystemTime::now())).unwrap();
-    let h = start(
-        WebConfig { listen: "127.0.0.1:0".parse().unwrap(), ws_rate_hz: rate, ..WebConfig::default() },
-        Arc::new(FakeBackend::new()),
-        lab,
-    )
-    .unwrap();
-    println!("{}", h.addr());
-    // Ends when the parent closes our stdin.
-    let mut s = String::new();
-    while std::io::stdin().read_line(&mut s).map(|n| n > 0).unwrap_or(false) {}
+fn arg(name: &str, default: f64) -> f64 {
+    arg_str(name).map_or(default, |v| v.parse().unwrap())
 }
 
 fn cpu_ticks(pid: u32) -> u64 {
@@ -79,23 +60,15 @@ fn pct(v: &[u64], p: f64) -> f64 {
 
 #[tokio::main]
 async fn main() {
-    let rate = arg("--rate", 20.0);
-    if std::env::args().any(|a| a == "--serve") {
-        serve(rate);
-        return;
-    }
+    let usage = "usage: ws_load --url http://HOST:PORT --user USER --password PASSWORD [--pid PID] [--clients N] [--secs S]";
+    let base = arg_str("--url").expect(usage).trim_end_matches('/').to_string();
+    let user = arg_str("--user").expect(usage);
+    let password = arg_str("--password").expect(usage);
+    let pid: Option<u32> = arg_str("--pid").map(|p| p.parse().unwrap());
     let clients = arg("--clients", 50.0) as usize;
     let secs = arg("--secs", 10.0);
-    let mut child = Command::new(std::env::current_exe().unwrap())
-        .args(["--serve", "--rate", &rate.to_string()])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let addr = line.trim().to_string();
-    let base = format!("http://{addr}");
+    let addr = base.split_once("://").map_or(base.as_str(), |(_, a)| a).to_string();
+    let ws_base = if base.starts_with("https://") { "wss" } else { "ws" };
 
     // HMI first load: fresh client (new connection) each time.
     let mut loads = Vec::new();
@@ -115,16 +88,18 @@ async fn main() {
     let http = reqwest::Client::new();
     let r = http
         .post(format!("{base}/api/login"))
-        .json(&serde_json::json!({ "user": "load", "password": PW }))
+        .json(&serde_json::json!({ "user": user, "password": password }))
         .send()
         .await
         .unwrap();
+    assert!(r.status().is_success(), "login: {}", r.status());
     let cookie = r.headers()["set-cookie"].to_str().unwrap().split(';').next().unwrap().to_string();
 
     let mut tasks = Vec::new();
     for _ in 0..clients {
-        let mut req = format!("ws://{addr}/api/ws").into_client_request().unwrap();
+        let mut req = format!("{ws_base}://{addr}/api/ws").into_client_request().unwrap();
         req.headers_mut().insert("Cookie", cookie.parse().unwrap());
+        req.headers_mut().insert("Origin", base.parse().unwrap());
         let (mut ws, _) = tokio_tungstenite::connect_async(req).await.unwrap();
         tasks.push(tokio::spawn(async move {
             let mut lat = Vec::new();
@@ -150,10 +125,9 @@ async fn main() {
     }
     // Measure CPU over the same window as the clients (after their 1 s warm-up).
     tokio::time::sleep(Duration::from_secs(1)).await;
-    let pid = child.id();
-    let (c0, t0) = (cpu_ticks(pid), Instant::now());
+    let (c0, t0) = (pid.map(cpu_ticks), Instant::now());
     tokio::time::sleep(Duration::from_secs_f64(secs)).await;
-    let (c1, wall) = (cpu_ticks(pid), t0.elapsed().as_secs_f64());
+    let (c1, wall) = (pid.map(cpu_ticks), t0.elapsed().as_secs_f64());
     let mut all = Vec::new();
     let mut rates = Vec::new();
     for t in tasks {
@@ -161,14 +135,15 @@ async fn main() {
         rates.push(l.len() as f64 / secs);
         all.extend(l);
     }
-    drop(child.stdin.take());
-    let _ = child.wait();
     all.sort_unstable();
-    let cpu = (c1 - c0) as f64 / clk_tck() / wall * 100.0;
+    let cpu = c0.zip(c1).map(|(c0, c1)| (c1 - c0) as f64 / clk_tck() / wall * 100.0);
     let min_rate = rates.iter().copied().fold(f64::INFINITY, f64::min);
     let mean_rate = rates.iter().sum::<f64>() / rates.len() as f64;
-    println!("clients: {clients}, rate: {rate} Hz, window: {secs} s");
-    println!("server CPU: {cpu:.1} % of one core");
+    println!("station: {base}, clients: {clients}, window: {secs} s");
+    match cpu {
+        Some(cpu) => println!("server CPU: {cpu:.1} % of one core"),
+        None => println!("server CPU: not measured (give --pid)"),
+    }
     println!("frames/s per client: mean {mean_rate:.2}, min {min_rate:.2}");
     println!(
         "update latency ms: p50 {:.2}, p99 {:.2}, max {:.2} ({} frames)",

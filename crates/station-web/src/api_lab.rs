@@ -68,6 +68,11 @@ pub async fn login(
         Err(LoginError::BadCredentials) => {
             Err(ApiError::new(StatusCode::UNAUTHORIZED, "bad_credentials", "wrong user name or password"))
         }
+        // The password-hashing pool is full: nothing was checked or counted; retry soon.
+        Err(e @ LoginError::Busy) => Err(ApiError {
+            retry_after: Some(1),
+            ..ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "busy", e.to_string())
+        }),
         Err(e) => Err(ApiError::internal(e.to_string())),
     }
 }
@@ -104,7 +109,7 @@ pub async fn end_session(
     Csrf(auth): Csrf,
 ) -> ApiResult {
     let ended = state.lab.end_user_session(&auth.actor(), &user, state.now()).map_err(|e| match e {
-        motus_lab::EndSessionError::Authz(a) => ApiError::from(a),
+        motus_lab::EndSessionError::Authz(a) => ApiError::from(a).mark_audited(),
         other => ApiError::internal(other.to_string()),
     })?;
     state.lab_changed.store(true, Ordering::SeqCst);
@@ -171,7 +176,7 @@ pub async fn book(State(state): State<AppState>, Csrf(auth): Csrf, Body(b): Body
         tracing::error!(error = %e, "audit write failed");
     }
     state.lab_changed.store(true, Ordering::SeqCst);
-    Ok(Json(json!(r?)))
+    Ok(Json(json!(r.map_err(|e| ApiError::from(e).mark_audited())?)))
 }
 
 /// `DELETE /api/reservations/{id}`: cancels (or ends early) a reservation.
@@ -188,7 +193,7 @@ pub async fn cancel(State(state): State<AppState>, Path(id): Path<i64>, Csrf(aut
     if let Err(e) = state.lab.record(&auth.actor(), &action, audit, state.now()) {
         tracing::error!(error = %e, "audit write failed");
     }
-    let ended = out?;
+    let ended = out.map_err(|e| ApiError::from(e).mark_audited())?;
     state.lab_changed.store(true, Ordering::SeqCst);
     run_cleanups(&state);
     Ok(Json(json!({ "ok": true, "ended": ended })))
@@ -237,7 +242,7 @@ pub async fn ack_alarm(State(state): State<AppState>, Path(id): Path<i64>, Csrf(
     state.lab_changed.store(true, Ordering::SeqCst);
     match out {
         AckOutcome::Acknowledged(a) | AckOutcome::AlreadyAcknowledged(a) => Ok(Json(json!(a))),
-        AckOutcome::NotFound => Err(ApiError::not_found(format!("no alarm {id}"))),
+        AckOutcome::NotFound => Err(ApiError::not_found(format!("no alarm {id}")).mark_audited()),
     }
 }
 
@@ -283,7 +288,7 @@ pub async fn add_user(
         &format!("user:{name}"),
         r.as_ref().map(|_| ()).map_err(ToString::to_string),
     );
-    Ok(Json(user_json(&r?)))
+    Ok(Json(user_json(&r.map_err(|e| ApiError::from(e).mark_audited())?)))
 }
 
 /// `DELETE /api/users/{name}` (admin).
@@ -300,11 +305,12 @@ pub async fn delete_user(
         &format!("user:{name}"),
         r.as_ref().map(|_| ()).map_err(ToString::to_string),
     );
-    r?;
+    r.map_err(|e| ApiError::from(e).mark_audited())?;
     Ok(Json(json!({ "ok": true })))
 }
 
-/// Fallback: JSON 404.
+/// Fallback: JSON 404 (under `/api/`, [`crate::auth::audit_refusals`] answers 401 instead
+/// without a session and audits the miss with one).
 pub async fn not_found() -> ApiError {
     ApiError::not_found("no such route")
 }

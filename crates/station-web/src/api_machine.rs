@@ -4,13 +4,18 @@
 use std::collections::HashMap;
 
 use axum::extract::{Path, Query, State};
+use axum::http::StatusCode;
 use axum::Json;
-use motus_lab::{Action, AxisOp, Command, MotionDemand, ProgramKind, ProgramMeta, Role};
+use motus_lab::{
+    Action, AuditEntry, AuditOutcome, AxisOp, Command, MotionDemand, ProgramKind, ProgramMeta, Role,
+};
 use serde::Deserialize;
 use serde_json::{json, Value};
 
 use crate::auth::{Auth, Body, Csrf};
-use crate::backend::{AxisAction, AxisParameters, AxisView, BackendError, GroupAction};
+use crate::backend::{
+    AxisAction, AxisParameters, AxisView, BackendError, GroupAction, GroupKind, ProgramCheck,
+};
 use crate::error::ApiError;
 use crate::server::AppState;
 
@@ -185,7 +190,10 @@ pub async fn groups(State(state): State<AppState>, _auth: Auth) -> ApiResult {
 }
 
 /// `POST /api/groups/{id}`: robot go-to, pan-tilt target, arm joints. Authorised as a move
-/// of every member axis at its default speed and acceleration.
+/// of every member axis at its default speed and acceleration: to its target for groups
+/// whose targets are member positions (pan-tilt, arm, gantry), anywhere within its machine
+/// limits otherwise (the robot's targets are a pose; a juggler program stays within its
+/// drives' limits), so the lab checks students' position ranges as well as the speeds.
 pub async fn group_command(
     State(state): State<AppState>,
     Path(id): Path<String>,
@@ -200,12 +208,21 @@ pub async fn group_command(
         .ok_or_else(|| ApiError::not_found(format!("no group {id:?}")))?;
     let axes = state.backend.axes();
     let op = if matches!(action, GroupAction::Stop) { AxisOp::Stop } else { AxisOp::Move };
-    for member in &group.axes {
+    let positions = match &action {
+        GroupAction::GoTo { targets } if group.kind != GroupKind::Robot => Some(targets.as_slice()),
+        _ => None,
+    };
+    for (i, member) in group.axes.iter().enumerate() {
         let view = axes.iter().find(|a| a.id == *member);
         let demand = match (op, view) {
-            (AxisOp::Move, Some(v)) => {
-                Some(MotionDemand { speed: v.default_speed, acceleration: v.acceleration })
-            }
+            (AxisOp::Move, Some(v)) => Some(match positions {
+                Some(targets) => match targets.get(i) {
+                    Some(&t) => MotionDemand::within(v.default_speed, v.acceleration, t, t),
+                    // Too few targets: the backend refuses the command; state no position.
+                    None => MotionDemand::new(v.default_speed, v.acceleration),
+                },
+                None => MotionDemand::within(v.default_speed, v.acceleration, v.limits.min, v.limits.max),
+            }),
             _ => None,
         };
         let cmd = Command::Axis { axis: member.clone(), op, demand };
@@ -219,9 +236,26 @@ pub async fn group_command(
     Ok(ok())
 }
 
-/// `GET /api/programs`.
-pub async fn programs(State(state): State<AppState>, _auth: Auth) -> ApiResult {
-    Ok(Json(json!(state.backend.programs())))
+/// Runs a backend program function on a blocking thread: checking may take up to the
+/// backend's check budget, and the async runtime (E-stop, login, the WebSocket) never waits
+/// on program work.
+async fn blocking<T, F>(f: F) -> Result<T, BackendError>
+where
+    T: Send + 'static,
+    F: FnOnce() -> Result<T, BackendError> + Send + 'static,
+{
+    tokio::task::spawn_blocking(f)
+        .await
+        .unwrap_or_else(|e| Err(BackendError::Failed(format!("backend task failed: {e}"))))
+}
+
+/// `GET /api/programs`: the programs the caller may see (admins: every program; students:
+/// their own and the published ones; viewers: the published ones).
+pub async fn programs(State(state): State<AppState>, auth: Auth) -> ApiResult {
+    let backend = std::sync::Arc::clone(&state.backend);
+    let caller = auth.caller();
+    let list = blocking(move || Ok(backend.programs(&caller))).await?;
+    Ok(Json(json!(list)))
 }
 
 /// Body of `POST /api/programs`.
@@ -234,7 +268,114 @@ pub struct UploadBody {
     pub text: String,
 }
 
-/// `POST /api/programs`: upload (registered with lab so it is removed at the end of the slot).
+/// One line per axis demand, for the audit log: `x [0, 0.5] m 0.1/s 1/s²`.
+fn demands_text(demands: &[(String, MotionDemand)]) -> String {
+    demands
+        .iter()
+        .map(|(axis, d)| match d.range {
+            Some([lo, hi]) => format!("{axis} [{lo}, {hi}] v {} a {}", d.speed, d.acceleration),
+            None => format!("{axis} v {} a {}", d.speed, d.acceleration),
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// The audit target of a program: `station/name (id)`, with its demands when known.
+fn program_target(
+    state: &AppState,
+    id: &str,
+    name: Option<&str>,
+    demands: &[(String, MotionDemand)],
+) -> String {
+    let mut t = format!("{}/{} ({id})", state.config.station, name.unwrap_or(id));
+    if !demands.is_empty() {
+        t.push_str(" demands: ");
+        t.push_str(&demands_text(demands));
+    }
+    t
+}
+
+/// Appends one audit entry about a program.
+fn audit_program(state: &AppState, auth: &Auth, action: &str, target: String, outcome: AuditOutcome) {
+    let entry = AuditEntry {
+        time: state.now(),
+        user: auth.session.user.clone(),
+        action: action.into(),
+        target,
+        outcome,
+    };
+    if let Err(e) = state.lab.audit().append(&entry) {
+        tracing::error!(error = %e, "audit write failed");
+    }
+}
+
+/// The audit outcome of a backend refusal (`denied` for 403/404, `error` otherwise).
+fn refusal(e: &ApiError) -> AuditOutcome {
+    let message = format!("{} {}: {}", e.status.as_u16(), e.error, e.detail_text());
+    if matches!(e.status, StatusCode::FORBIDDEN | StatusCode::NOT_FOUND) {
+        AuditOutcome::Denied(message)
+    } else {
+        AuditOutcome::Error(message)
+    }
+}
+
+/// Viewers neither check nor run programs (refused before any program work, audited as
+/// `action`).
+fn no_viewers(state: &AppState, auth: &Auth, action: &str, id: &str) -> Result<(), ApiError> {
+    if auth.session.role == Role::Viewer {
+        let e = ApiError::forbidden("viewers cannot check or run programs");
+        audit_program(state, auth, action, program_target(state, id, None, &[]), refusal(&e));
+        return Err(e.mark_audited());
+    }
+    Ok(())
+}
+
+/// The program's name and its check, on a blocking thread (not audited).
+async fn check_for(
+    state: &AppState,
+    auth: &Auth,
+    id: &str,
+) -> (Option<String>, Result<ProgramCheck, ApiError>) {
+    let backend = std::sync::Arc::clone(&state.backend);
+    let caller = auth.caller();
+    let id = id.to_owned();
+    let r = blocking(move || {
+        let name = backend.programs(&caller).into_iter().find(|p| p.id == id).map(|p| p.name);
+        Ok((name, backend.check_program(&caller, &id)))
+    })
+    .await;
+    match r {
+        Ok((name, check)) => (name, check.map_err(ApiError::from)),
+        Err(e) => (None, Err(ApiError::from(e))),
+    }
+}
+
+/// Checks a program for `auth` and audits the check as `command.check_program`, with the
+/// program, its demands or its first error.
+async fn audited_check(state: &AppState, auth: &Auth, id: &str) -> Result<ProgramCheck, ApiError> {
+    const ACTION: &str = "command.check_program";
+    no_viewers(state, auth, ACTION, id)?;
+    let (name, check) = check_for(state, auth, id).await;
+    match check {
+        Ok(check) => {
+            let target = program_target(state, id, name.as_deref(), &check.demands);
+            let outcome = match check.errors.first() {
+                None => AuditOutcome::Ok,
+                Some(e) => AuditOutcome::Error(format!("{}:{}: {}", e.line, e.col, e.message)),
+            };
+            audit_program(state, auth, ACTION, target, outcome);
+            Ok(check)
+        }
+        Err(e) => {
+            audit_program(state, auth, ACTION, program_target(state, id, name.as_deref(), &[]), refusal(&e));
+            Err(e.mark_audited())
+        }
+    }
+}
+
+/// `POST /api/programs`: upload (registered with lab so it is removed at the end of the
+/// slot), then checked within the station's budget; when every checker is busy the upload
+/// stands and its check says so (check it again with `POST /api/programs/{id}/check`).
 pub async fn upload_program(
     State(state): State<AppState>,
     Csrf(auth): Csrf,
@@ -257,37 +398,126 @@ pub async fn upload_program(
         created: state.now(),
     };
     state.lab.programs().register(&meta)?;
-    let check = state.backend.check_program(&info.id)?;
+    let check = match audited_check(&state, &auth, &info.id).await {
+        Ok(check) => json!(check),
+        Err(e) => json!({
+            "errors": [{ "line": 0, "col": 0, "message": format!(
+                "not checked: {}; check it again with POST /api/programs/{}/check", e.detail_text(), info.id
+            ) }],
+            "demands": [],
+        }),
+    };
     Ok(Json(json!({ "program": info, "check": check })))
 }
 
-/// `POST /api/programs/{id}/check`.
-pub async fn check_program(State(state): State<AppState>, Path(id): Path<String>, _auth: Csrf) -> ApiResult {
-    Ok(Json(json!(state.backend.check_program(&id)?)))
+/// `POST /api/programs/{id}/check`: errors with line:col and per-axis demands (students:
+/// their own and published programs; viewers: refused). Busy checkers: 503 at once.
+pub async fn check_program(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    Csrf(auth): Csrf,
+) -> ApiResult {
+    Ok(Json(json!(audited_check(&state, &auth, &id).await?)))
 }
 
-fn program_command(state: &AppState, id: &str) -> Result<Command, ApiError> {
-    let name = state.backend.programs().into_iter().find(|p| p.id == id).map(|p| p.name);
-    let check = state.backend.check_program(id)?;
+/// The lab command that runs program `id` with its per-axis demands, and its audit target.
+/// A program `auth` may not see, one with errors (e.g. leaving the machine travel) or a
+/// busy checker refuses it here, audited as `action` with the program and the error.
+async fn program_command(
+    state: &AppState,
+    auth: &Auth,
+    id: &str,
+    action: &str,
+) -> Result<(Command, String), ApiError> {
+    no_viewers(state, auth, action, id)?;
+    let (name, check) = check_for(state, auth, id).await;
+    let check = match check {
+        Ok(c) => c,
+        Err(e) => {
+            audit_program(state, auth, action, program_target(state, id, name.as_deref(), &[]), refusal(&e));
+            return Err(e.mark_audited());
+        }
+    };
+    let target = program_target(state, id, name.as_deref(), &check.demands);
     if let Some(e) = check.errors.first() {
-        return Err(ApiError::invalid(json!({
-            "message": format!("{}:{}: {}", e.line, e.col, e.message),
-            "errors": check.errors,
-        })));
+        let message = format!("{}:{}: {}", e.line, e.col, e.message);
+        audit_program(state, auth, action, target, AuditOutcome::Error(message.clone()));
+        return Err(ApiError::invalid(json!({ "message": message, "errors": check.errors })).mark_audited());
     }
-    Ok(Command::RunProgram { name: name.unwrap_or_else(|| id.to_string()), demands: check.demands })
+    Ok((Command::RunProgram { name: name.unwrap_or_else(|| id.to_string()), demands: check.demands }, target))
 }
 
-/// `POST /api/programs/{id}/run`: authorised with the program's per-axis peak demands.
+/// `POST /api/programs/{id}/run`: authorised by lab with the program's per-axis demands
+/// (position range, peak speed and acceleration: students stay within their limits); the
+/// run, or its refusal, is audited with the program and its demands.
 pub async fn run_program(
     State(state): State<AppState>,
     Path(id): Path<String>,
     Csrf(auth): Csrf,
 ) -> ApiResult {
-    let command = program_command(&state, &id)?;
+    const ACTION: &str = "command.run_program";
+    let (command, target) = program_command(&state, &auth, &id, ACTION).await?;
+    let action = Action::Command { station: state.config.station.clone(), command };
+    if let Err(e) =
+        state.lab.authorizer().authorize(&auth.session.user, auth.session.role, &action, state.now())
+    {
+        let outcome = match &e {
+            motus_lab::AuthzError::Denied(d) => AuditOutcome::Denied(d.reason.to_string()),
+            other => AuditOutcome::Error(other.to_string()),
+        };
+        audit_program(&state, &auth, ACTION, target, outcome);
+        return Err(ApiError::from(e).mark_audited());
+    }
     let backend = std::sync::Arc::clone(&state.backend);
-    state.command(&auth, command, move |c| backend.run_program(&c, &id)).await?;
+    let caller = auth.caller();
+    let result = blocking(move || backend.run_program(&caller, &id)).await;
+    let outcome = match &result {
+        Ok(()) => AuditOutcome::Ok,
+        Err(e) => refusal(&ApiError::from(e.clone())),
+    };
+    audit_program(&state, &auth, ACTION, target, outcome);
+    result.map_err(|e| ApiError::from(e).mark_audited())?;
     Ok(ok())
+}
+
+async fn publish(state: AppState, auth: Auth, id: String, published: bool) -> ApiResult {
+    let action = if published { "publish_program" } else { "unpublish_program" };
+    if auth.session.role != Role::Admin {
+        let e = ApiError::forbidden("admin only");
+        audit_program(&state, &auth, action, program_target(&state, &id, None, &[]), refusal(&e));
+        return Err(e.mark_audited());
+    }
+    let backend = std::sync::Arc::clone(&state.backend);
+    let caller = auth.caller();
+    let pid = id.clone();
+    let result = blocking(move || backend.publish_program(&caller, &pid, published)).await;
+    let name = result.as_ref().ok().map(|i| i.name.clone());
+    let outcome = match &result {
+        Ok(_) => AuditOutcome::Ok,
+        Err(e) => refusal(&ApiError::from(e.clone())),
+    };
+    audit_program(&state, &auth, action, program_target(&state, &id, name.as_deref(), &[]), outcome);
+    let info = result.map_err(|e| ApiError::from(e).mark_audited())?;
+    Ok(Json(json!(info)))
+}
+
+/// `POST /api/programs/{id}/publish` (admin, audited): every student may see, check and run
+/// the program, and it stays after its owner's slot.
+pub async fn publish_program(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    Csrf(auth): Csrf,
+) -> ApiResult {
+    publish(state, auth, id, true).await
+}
+
+/// `DELETE /api/programs/{id}/publish` (admin, audited): withdraws a publication.
+pub async fn unpublish_program(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    Csrf(auth): Csrf,
+) -> ApiResult {
+    publish(state, auth, id, false).await
 }
 
 /// `POST /api/programs/hold`.
@@ -304,7 +534,7 @@ pub async fn resume_program(State(state): State<AppState>, Csrf(auth): Csrf) -> 
         .program_status()
         .program
         .ok_or_else(|| ApiError::from(BackendError::State("no program to resume".into())))?;
-    let command = program_command(&state, &id)?;
+    let (command, _) = program_command(&state, &auth, &id, "command.resume_program").await?;
     let backend = std::sync::Arc::clone(&state.backend);
     state.command(&auth, command, move |c| backend.resume_program(&c)).await?;
     Ok(ok())

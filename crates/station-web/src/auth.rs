@@ -1,12 +1,15 @@
 //! Request authentication: the session cookie ([`Auth`]), the CSRF header for mutating
-//! requests ([`Csrf`]), JSON bodies with JSON errors ([`Body`]), and the
-//! authorise-run-audit helper every command goes through ([`Inner::command`]).
+//! requests ([`Csrf`]), JSON bodies with JSON errors ([`Body`]), the authorise-run-audit
+//! helper every command goes through ([`Inner::command`]), and the middleware that audits
+//! every refusal no handler audited ([`audit_refusals`]).
 
 use axum::async_trait;
 use axum::extract::rejection::JsonRejection;
-use axum::extract::{FromRequest, FromRequestParts, Request};
+use axum::extract::{FromRequest, FromRequestParts, Request, State};
 use axum::http::request::Parts;
-use axum::http::{header, HeaderMap, StatusCode};
+use axum::http::{header, HeaderMap, Method, StatusCode};
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
 use axum::Json;
 use motus_lab::{Action, Actor, AuditEntry, AuditOutcome, Command, Role, SessionError, SessionInfo};
 use serde::de::DeserializeOwned;
@@ -97,7 +100,8 @@ impl FromRequestParts<AppState> for Csrf {
             if let Err(e) = state.lab.audit().append(&entry) {
                 tracing::error!(error = %e, "audit write failed");
             }
-            return Err(ApiError::new(StatusCode::FORBIDDEN, "csrf", "X-CSRF-Token header missing or wrong"));
+            return Err(ApiError::new(StatusCode::FORBIDDEN, "csrf", "X-CSRF-Token header missing or wrong")
+                .mark_audited());
         }
         Ok(Csrf(auth))
     }
@@ -148,7 +152,7 @@ impl Inner {
         T: Send + 'static,
         F: FnOnce(Caller) -> Result<T, BackendError> + Send + 'static,
     {
-        self.lab.authorize(&auth.actor(), action, self.now())?;
+        self.check(auth, action)?;
         self.run_and_record(auth, action, f).await
     }
 
@@ -171,7 +175,7 @@ impl Inner {
         if let Err(e) = self.lab.record(&actor, action, audit, self.now()) {
             tracing::error!(error = %e, "audit write failed");
         }
-        Ok(result?)
+        result.map_err(|e| ApiError::from(e).mark_audited())
     }
 
     /// Authorises `action` (denials audited) without running anything.
@@ -179,7 +183,7 @@ impl Inner {
     /// # Errors
     /// 403 when refused.
     pub fn check(&self, auth: &Auth, action: &Action) -> Result<(), ApiError> {
-        Ok(self.lab.authorize(&auth.actor(), action, self.now())?)
+        self.lab.authorize(&auth.actor(), action, self.now()).map_err(|e| ApiError::from(e).mark_audited())
     }
 
     /// Audits an admin action that has no lab [`Action`] of its own.
@@ -212,4 +216,110 @@ impl Inner {
             }
         }
     }
+}
+
+/// Longest refusal message written to the audit log.
+const MAX_AUDIT_MESSAGE: usize = 300;
+
+/// The refusal as one line: `status error: detail`, from the [`ApiError`] the response
+/// carries, else from its (small) body. Returns the response rebuilt.
+async fn refusal_text(response: Response, known: Option<&ApiError>) -> (Response, String) {
+    let status = response.status();
+    if let Some(e) = known {
+        return (response, format!("{} {}: {}", status.as_u16(), e.error, e.detail_text()));
+    }
+    let (mut parts, body) = response.into_parts();
+    match axum::body::to_bytes(body, 16 * 1024).await {
+        Ok(bytes) => {
+            let text = String::from_utf8_lossy(&bytes).trim().to_string();
+            let text = if text.is_empty() {
+                status.canonical_reason().unwrap_or_default().to_string()
+            } else {
+                text
+            };
+            (
+                Response::from_parts(parts, axum::body::Body::from(bytes)),
+                format!("{} {text}", status.as_u16()),
+            )
+        }
+        Err(_) => {
+            parts.headers.remove(header::CONTENT_LENGTH);
+            (Response::from_parts(parts, axum::body::Body::empty()), status.to_string())
+        }
+    }
+}
+
+fn truncated(mut s: String) -> String {
+    if s.len() > MAX_AUDIT_MESSAGE {
+        let mut end = MAX_AUDIT_MESSAGE;
+        while !s.is_char_boundary(end) {
+            end -= 1;
+        }
+        s.truncate(end);
+        s.push('…');
+    }
+    s
+}
+
+fn append_refusal(state: &Inner, user: &str, target: String, status: StatusCode, message: String) {
+    let message = truncated(message);
+    let outcome = if matches!(status, StatusCode::UNAUTHORIZED | StatusCode::FORBIDDEN) {
+        AuditOutcome::Denied(message)
+    } else {
+        AuditOutcome::Error(message)
+    };
+    let entry =
+        AuditEntry { time: state.now(), user: user.into(), action: "request".into(), target, outcome };
+    if let Err(e) = state.lab.audit().append(&entry) {
+        tracing::error!(error = %e, "audit write failed");
+    }
+}
+
+/// Middleware: audits, as action `request` on `METHOD path`, every refusal no handler
+/// audited (the handlers' own refusals carry [`ApiError::audited`]; the login's are audited
+/// by lab):
+///
+/// - a mutating request (not GET, HEAD or OPTIONS) answered 4xx: a body the extractors
+///   rejected (bad JSON, no JSON content type, too large), a missing or expired session,
+///   an unknown route or method;
+/// - an API route miss (404 or 405 under `/api/`) of a logged-in user.
+///
+/// The user is the session's, `anonymous` without one. An API route miss without a valid
+/// session is answered 401, as every API route is: the API's shape is not shown before
+/// authentication.
+pub async fn audit_refusals(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    let method = req.method().clone();
+    let path = req.uri().path().to_string();
+    let token = session_token(&state, req.headers());
+    let response = next.run(req).await;
+    let status = response.status();
+    if !status.is_client_error() {
+        return response;
+    }
+    let known = response.extensions().get::<ApiError>().cloned();
+    if known.as_ref().is_some_and(|e| e.audited) {
+        return response;
+    }
+    if path == "/api/login" && matches!(status, StatusCode::UNAUTHORIZED | StatusCode::TOO_MANY_REQUESTS) {
+        return response; // lab's login audits its own refusals
+    }
+    let mutating = !matches!(method, Method::GET | Method::HEAD | Method::OPTIONS);
+    let route_miss =
+        path.starts_with("/api/") && matches!(status, StatusCode::NOT_FOUND | StatusCode::METHOD_NOT_ALLOWED);
+    if !mutating && !route_miss {
+        return response;
+    }
+    let user = token.and_then(|t| state.lab.sessions().lookup(&t, state.now()).ok()).map(|s| s.user);
+    let target = format!("{method} {path}");
+    if route_miss && user.is_none() {
+        let e = ApiError::unauthenticated("log in first");
+        if mutating {
+            let message = format!("{} {}: {}", e.status.as_u16(), e.error, e.detail_text());
+            append_refusal(&state, "anonymous", target, e.status, message);
+        }
+        return e.mark_audited().into_response();
+    }
+    let (response, message) = refusal_text(response, known.as_ref()).await;
+    append_refusal(&state, user.as_deref().unwrap_or("anonymous"), target, status, message);
+    response
 }

@@ -1,8 +1,8 @@
 //! [`MachineBackend`]: what the web layer needs from the machine, and the validated command
 //! types shared with the CLI ([`AxisAction`], [`GroupAction`]).
 //!
-//! The station implements this trait over its real devices; [`crate::fake::FakeBackend`] is
-//! an in-memory machine for tests and `cargo run --example fake_station`. The web layer
+//! The station implements this trait over its real devices (`motus-station-machine`); the
+//! API tests run against that machine on a simulated cell. The web layer
 //! authorises every call (lab's `authorize`) before it reaches the backend; the backend
 //! still validates every number it receives (finite, within the axis limits).
 
@@ -153,12 +153,15 @@ impl AxisAction {
     #[must_use]
     pub fn demand(&self, axis: &AxisView) -> Option<motus_lab::MotionDemand> {
         match *self {
-            AxisAction::Jog { speed, acceleration, .. } | AxisAction::Move { speed, acceleration, .. } => {
-                Some(motus_lab::MotionDemand {
-                    speed,
-                    acceleration: acceleration.unwrap_or(axis.acceleration),
-                })
+            AxisAction::Jog { speed, acceleration, .. } => {
+                Some(motus_lab::MotionDemand::new(speed, acceleration.unwrap_or(axis.acceleration)))
             }
+            AxisAction::Move { target, speed, acceleration } => Some(motus_lab::MotionDemand::within(
+                speed,
+                acceleration.unwrap_or(axis.acceleration),
+                target,
+                target,
+            )),
             AxisAction::Home | AxisAction::Stop => None,
         }
     }
@@ -280,6 +283,24 @@ pub struct ProgramInfo {
     pub size: u64,
     /// Number of lines.
     pub lines: usize,
+    /// Published by an administrator: every student may see, check and run it (otherwise
+    /// only its owner and administrators).
+    #[serde(default)]
+    pub published: bool,
+}
+
+impl ProgramInfo {
+    /// True if `caller` may see (and, as a student or admin, check and run) this program:
+    /// admins see every program, students their own and the published ones, viewers the
+    /// published ones.
+    #[must_use]
+    pub fn visible_to(&self, caller: &Caller) -> bool {
+        match caller.role {
+            Role::Admin => true,
+            Role::Student => self.published || self.owner == caller.user,
+            Role::Viewer => self.published,
+        }
+    }
 }
 
 /// One error found when checking a program.
@@ -421,6 +442,15 @@ pub enum BackendError {
     /// The machine failed (HTTP 500).
     #[error("machine failure: {0}")]
     Failed(String),
+    /// The backend refuses this caller (HTTP 403): a student beyond the axis's student
+    /// limits or on an axis students cannot move, a student resetting an emergency stop an
+    /// administrator pressed. The message says why (and who pressed the stop).
+    #[error("not allowed: {0}")]
+    Forbidden(String),
+    /// The backend has no capacity for this request now (HTTP 503): e.g. every program
+    /// checker is busy. Try again later.
+    #[error("busy: {0}")]
+    Busy(String),
 }
 
 impl BackendError {
@@ -470,18 +500,35 @@ pub trait MachineBackend: Send + Sync {
     /// # Errors
     /// [`BackendError::Invalid`] (empty, too large, bad name).
     fn upload_program(&self, caller: &Caller, name: &str, text: &str) -> Result<ProgramInfo, BackendError>;
-    /// Stored programs.
-    fn programs(&self) -> Vec<ProgramInfo>;
-    /// Checks a program (errors with line:col, per-axis demands).
+    /// The stored programs `caller` may see ([`ProgramInfo::visible_to`]).
+    fn programs(&self, caller: &Caller) -> Vec<ProgramInfo>;
+    /// Checks a program `caller` may see (errors with line:col, per-axis demands). May take
+    /// up to the backend's check budget: call it from a blocking-safe thread.
     ///
     /// # Errors
-    /// [`BackendError::NotFound`].
-    fn check_program(&self, id: &str) -> Result<ProgramCheck, BackendError>;
-    /// Runs a checked program.
+    /// [`BackendError::NotFound`] (also for a program `caller` may not see: its name does
+    /// not leak), [`BackendError::Forbidden`] for a viewer, [`BackendError::Busy`] when
+    /// every checker is busy.
+    fn check_program(&self, caller: &Caller, id: &str) -> Result<ProgramCheck, BackendError>;
+    /// Runs a checked program `caller` may see.
     ///
     /// # Errors
     /// [`BackendError`] (errors in the program, busy, held...).
     fn run_program(&self, caller: &Caller, id: &str) -> Result<(), BackendError>;
+    /// Publishes a program to every student, or withdraws it (`published: false`); the web
+    /// layer lets only administrators call it.
+    ///
+    /// # Errors
+    /// [`BackendError::NotFound`]; [`BackendError::State`] for a backend without publishing.
+    fn publish_program(
+        &self,
+        caller: &Caller,
+        id: &str,
+        published: bool,
+    ) -> Result<ProgramInfo, BackendError> {
+        let _ = (caller, published);
+        Err(BackendError::State(format!("program {id}: this backend cannot publish programs")))
+    }
     /// Feed hold.
     ///
     /// # Errors

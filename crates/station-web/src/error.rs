@@ -21,13 +21,42 @@ pub struct ApiError {
     pub detail: Value,
     /// Seconds for `Retry-After` (429).
     pub retry_after: Option<u64>,
+    /// The refusal is in the audit log already (the request is not audited again by
+    /// [`crate::auth::audit_refusals`]).
+    pub audited: bool,
 }
 
 impl ApiError {
     /// An error with a text detail.
     #[must_use]
     pub fn new(status: StatusCode, error: &str, detail: impl Into<Value>) -> Self {
-        ApiError { status, error: error.to_string(), detail: detail.into(), retry_after: None }
+        ApiError {
+            status,
+            error: error.to_string(),
+            detail: detail.into(),
+            retry_after: None,
+            audited: false,
+        }
+    }
+
+    /// The same error, marked as audited already.
+    #[must_use]
+    pub fn mark_audited(mut self) -> Self {
+        self.audited = true;
+        self
+    }
+
+    /// The detail as one line of text (its `message` when it is an object with one).
+    #[must_use]
+    pub fn detail_text(&self) -> String {
+        match &self.detail {
+            Value::String(s) => s.clone(),
+            Value::Object(o) => match o.get("message") {
+                Some(Value::String(m)) => m.clone(),
+                _ => self.detail.to_string(),
+            },
+            other => other.to_string(),
+        }
     }
 
     /// 400.
@@ -61,6 +90,7 @@ impl ApiError {
     }
 }
 
+/// The response carries the error itself as an extension, for the audit middleware.
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         let mut r =
@@ -70,6 +100,7 @@ impl IntoResponse for ApiError {
                 r.headers_mut().insert(header::RETRY_AFTER, v);
             }
         }
+        r.extensions_mut().insert(self);
         r
     }
 }
@@ -101,6 +132,8 @@ impl From<BackendError> for ApiError {
                 StatusCode::CONFLICT
             }
             BackendError::Failed(_) => StatusCode::INTERNAL_SERVER_ERROR,
+            BackendError::Forbidden(_) => StatusCode::FORBIDDEN,
+            BackendError::Busy(_) => StatusCode::SERVICE_UNAVAILABLE,
         };
         let code = match &e {
             BackendError::Invalid { .. } => "invalid",
@@ -109,6 +142,8 @@ impl From<BackendError> for ApiError {
             BackendError::EStopped => "estop",
             BackendError::State(_) => "state",
             BackendError::Failed(_) => "machine_failure",
+            BackendError::Forbidden(_) => "forbidden",
+            BackendError::Busy(_) => "busy",
         };
         ApiError::new(status, code, e.to_string())
     }

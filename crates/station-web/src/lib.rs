@@ -2,11 +2,12 @@
 //! stream of live state, and an embedded web HMI for the remote laboratory
 //! (`specs/remote-lab.md`).
 //!
-//! - [`backend::MachineBackend`]: what the web layer needs from the machine; the station
-//!   implements it, [`fake::FakeBackend`] is an in-memory machine for tests and the
-//!   `fake_station` example.
+//! - [`backend::MachineBackend`]: what the web layer needs from the machine; the station's
+//!   machine (`motus-station-machine`) implements it, and the API tests run against it on a
+//!   simulated cell (`crates/station-machine/tests/web_*.rs`).
 //! - [`server`]: the axum router, [`server::serve`] (async) and [`server::start`] (blocking,
 //!   returns a [`server::WebHandle`]).
+//! - [`listener`]: the connections under the router (time-outs, caps, graceful shutdown).
 //! - Users, sessions (cookie + CSRF), the login limiter, reservations, authorisation, the
 //!   audit log and alarms are `motus-lab`'s: every command goes through its `authorize` and
 //!   is written to its audit log. No route sets SafeToRun.
@@ -20,8 +21,7 @@ pub mod auth;
 pub mod backend;
 pub mod clock;
 pub mod error;
-pub mod fake;
-pub mod gcode;
+pub mod listener;
 pub mod openapi;
 pub mod server;
 pub mod ws;
@@ -33,5 +33,4 @@ pub use backend::{
 };
 pub use clock::{Clock, OffsetClock, SystemClock};
 pub use error::ApiError;
-pub use fake::FakeBackend;
-pub use server::{router, serve, serve_on, start, WebConfig, WebError, WebHandle};
+pub use server::{raise_fd_limit, router, serve, serve_on, start, WebConfig, WebError, WebHandle};

@@ -212,6 +212,20 @@ fn paths() -> Value {
         "post",
         with_path_param(op("Run a checked program", None, ok_schema(), true), "id", "string"),
     );
+    add(
+        "/api/programs/{id}/publish",
+        "post",
+        with_path_param(
+            op("Publish a program to every student (admin)", None, r("ProgramInfo"), true),
+            "id",
+            "string",
+        ),
+    );
+    add(
+        "/api/programs/{id}/publish",
+        "delete",
+        with_path_param(op("Withdraw a publication (admin)", None, r("ProgramInfo"), true), "id", "string"),
+    );
     add("/api/signals", "get", op("Traced signals", None, arr(any.clone()), false));
     let mut samples = op("Samples after a cursor", None, any.clone(), false);
     set(
@@ -326,7 +340,8 @@ fn schemas() -> Value {
             "action": { "type": "string", "enum": ["go_to", "stop", "run"] }, "targets": arr(num.clone()),
             "program": s } },
         "UploadRequest": { "type": "object", "required": ["name", "text"], "properties": { "name": s, "text": s } },
-        "ProgramInfo": { "type": "object", "properties": { "id": s, "name": s, "owner": s, "size": num, "lines": num } },
+        "ProgramInfo": { "type": "object", "properties": {
+            "id": s, "name": s, "owner": s, "size": num, "lines": num, "published": { "type": "boolean" } } },
         "ProgramCheck": { "type": "object", "properties": {
             "errors": arr(json!({ "type": "object", "properties": { "line": num, "col": num, "message": s } })),
             "demands": arr(json!({})) } },

@@ -16,7 +16,8 @@ use tokio::sync::{oneshot, watch};
 
 use crate::backend::MachineBackend;
 use crate::clock::{Clock, SystemClock};
-use crate::{api_lab, api_machine, assets, openapi, ws};
+use crate::listener::{self, Limits};
+use crate::{api_lab, api_machine, assets, auth, openapi, ws};
 
 /// Server settings.
 #[derive(Clone)]
@@ -31,6 +32,25 @@ pub struct WebConfig {
     pub cleanup_interval: Duration,
     /// The clock (tests inject an [`crate::clock::OffsetClock`]).
     pub clock: Arc<dyn Clock>,
+    /// Longest time from a connection's accept, or from the first byte of its next request,
+    /// to the request's complete head (default 10 s); then the connection is closed.
+    pub header_read_timeout: Duration,
+    /// Longest pause between requests on a keep-alive connection (default 60 s).
+    pub idle_timeout: Duration,
+    /// Open HTTP connections at most (default 1024). A new connection is still served at the
+    /// cap: the oldest idle connection (or one still sending its head) is closed for it.
+    pub max_connections: usize,
+    /// Open WebSockets at most, counted apart from HTTP connections (default 256); beyond
+    /// it an upgrade is answered 503.
+    pub max_websockets: usize,
+    /// At shutdown, how long requests in progress may finish before their connections are
+    /// dropped (default 1 s).
+    pub shutdown_grace: Duration,
+    /// Origins (`scheme://host[:port]`) whose pages may open the WebSocket. Empty (the
+    /// default): the served origin, `http://<listen address>:<port>`, plus `localhost`,
+    /// `127.0.0.1` and `[::1]` on a loopback address (and every local interface address and
+    /// the host name on an unspecified one, `0.0.0.0`); see [`ws::served_origins`].
+    pub allowed_origins: Vec<String>,
 }
 
 impl std::fmt::Debug for WebConfig {
@@ -40,6 +60,12 @@ impl std::fmt::Debug for WebConfig {
             .field("station", &self.station)
             .field("ws_rate_hz", &self.ws_rate_hz)
             .field("cleanup_interval", &self.cleanup_interval)
+            .field("header_read_timeout", &self.header_read_timeout)
+            .field("idle_timeout", &self.idle_timeout)
+            .field("max_connections", &self.max_connections)
+            .field("max_websockets", &self.max_websockets)
+            .field("shutdown_grace", &self.shutdown_grace)
+            .field("allowed_origins", &self.allowed_origins)
             .finish_non_exhaustive()
     }
 }
@@ -52,8 +78,56 @@ impl Default for WebConfig {
             ws_rate_hz: 20.0,
             cleanup_interval: Duration::from_secs(1),
             clock: Arc::new(SystemClock),
+            header_read_timeout: Duration::from_secs(10),
+            idle_timeout: Duration::from_secs(60),
+            max_connections: 1024,
+            max_websockets: 256,
+            shutdown_grace: Duration::from_secs(1),
+            allowed_origins: Vec::new(),
         }
     }
+}
+
+impl WebConfig {
+    fn validate(&self) -> Result<(), WebError> {
+        let rate = self.ws_rate_hz;
+        if !(rate.is_finite() && rate > 0.0 && rate <= 1000.0) {
+            return Err(WebError::Config(format!("ws_rate_hz {rate} not in (0, 1000]")));
+        }
+        if self.header_read_timeout.is_zero() || self.idle_timeout.is_zero() {
+            return Err(WebError::Config("header_read_timeout and idle_timeout must be > 0".into()));
+        }
+        if self.max_connections == 0 {
+            return Err(WebError::Config("max_connections must be > 0".into()));
+        }
+        ws::resolve_origins(&self.allowed_origins, self.listen).map_err(WebError::Config)?;
+        Ok(())
+    }
+
+    fn limits(&self) -> Limits {
+        Limits {
+            header_read_timeout: self.header_read_timeout,
+            idle_timeout: self.idle_timeout,
+            max_connections: self.max_connections,
+            max_websockets: self.max_websockets,
+            shutdown_grace: self.shutdown_grace,
+        }
+    }
+}
+
+/// Raises this process's soft limit of open descriptors (`RLIMIT_NOFILE`) to its hard
+/// limit, so that the connection cap, not the descriptor table, bounds the server. Returns
+/// the soft limit now in force. Idempotent; [`serve_on`] calls it.
+///
+/// # Errors
+/// The system's refusal.
+pub fn raise_fd_limit() -> Result<u64, nix::Error> {
+    use nix::sys::resource::{getrlimit, setrlimit, Resource};
+    let (soft, hard) = getrlimit(Resource::RLIMIT_NOFILE)?;
+    if soft < hard {
+        setrlimit(Resource::RLIMIT_NOFILE, hard, hard)?;
+    }
+    Ok(getrlimit(Resource::RLIMIT_NOFILE)?.0)
 }
 
 /// Why the server could not start.
@@ -130,6 +204,10 @@ pub fn router(state: AppState) -> Router {
         .route("/api/programs/stop", post(api_machine::stop_program))
         .route("/api/programs/:id/check", post(api_machine::check_program))
         .route("/api/programs/:id/run", post(api_machine::run_program))
+        .route(
+            "/api/programs/:id/publish",
+            post(api_machine::publish_program).delete(api_machine::unpublish_program),
+        )
         .route("/api/signals", get(api_machine::signals))
         .route("/api/samples", get(api_machine::samples))
         .route("/api/samples.csv", get(api_machine::samples_csv))
@@ -146,25 +224,40 @@ pub fn router(state: AppState) -> Router {
         .route("/api/users/:name", delete(api_lab::delete_user))
         .route("/api/ws", get(ws::handler))
         .fallback(api_lab::not_found)
+        .layer(axum::middleware::from_fn_with_state(Arc::clone(&state), auth::audit_refusals))
         .with_state(state)
 }
 
-/// Serves on `listener` until `shutdown` completes; then WebSocket streams end, in-flight
-/// requests finish, and the function returns.
+/// Serves on `listener` until `shutdown` completes; then WebSocket streams and idle
+/// connections end, requests in progress get `shutdown_grace` to finish, and the function
+/// returns.
+///
+/// Connections are served by [`crate::listener`]: HTTP/1.1 with upgrades, the header-read
+/// and idle time-outs and the connection caps of `config`; handlers see the peer as
+/// `ConnectInfo<SocketAddr>`. Raises the descriptor limit first ([`raise_fd_limit`]).
 ///
 /// # Errors
-/// [`WebError::Config`] for a bad rate, [`WebError::Io`] if serving fails.
+/// [`WebError::Config`] for a bad rate, limit or origin, [`WebError::Io`] if the listener
+/// has no address.
 pub async fn serve_on(
     listener: TcpListener,
-    config: WebConfig,
+    mut config: WebConfig,
     backend: Arc<dyn MachineBackend>,
     lab: Arc<Lab>,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> Result<(), WebError> {
-    if !(config.ws_rate_hz.is_finite() && config.ws_rate_hz > 0.0 && config.ws_rate_hz <= 1000.0) {
-        return Err(WebError::Config(format!("ws_rate_hz {} not in (0, 1000]", config.ws_rate_hz)));
-    }
+    config.validate()?;
     let addr = listener.local_addr().map_err(|source| WebError::Io { addr: config.listen, source })?;
+    config.allowed_origins = ws::resolve_origins(&config.allowed_origins, addr).map_err(WebError::Config)?;
+    match raise_fd_limit() {
+        Ok(n) => {
+            let needed = config.max_connections.saturating_add(config.max_websockets);
+            if u64::try_from(needed).unwrap_or(u64::MAX) >= n {
+                tracing::warn!(limit = n, needed, "descriptor limit below the connection caps");
+            }
+        }
+        Err(e) => tracing::warn!(error = %e, "cannot raise the descriptor limit"),
+    }
     let (frames, _) = watch::channel::<Arc<str>>(Arc::from("{}"));
     let (stop_tx, stop_rx) = watch::channel(false);
     let state = Arc::new(Inner {
@@ -177,16 +270,12 @@ pub async fn serve_on(
     });
     let broadcaster = tokio::spawn(ws::broadcast(Arc::clone(&state)));
     let sweeper = tokio::spawn(api_lab::cleanup_loop(Arc::clone(&state)));
-    tracing::info!(%addr, station = %state.config.station, "web server listening");
-    let app = router(Arc::clone(&state)).into_make_service_with_connect_info::<SocketAddr>();
-    let signal = async move {
-        shutdown.await;
-        let _ = stop_tx.send(true);
-    };
-    let result = axum::serve(listener, app).with_graceful_shutdown(signal).await;
+    tracing::info!(%addr, station = %state.config.station, origins = ?state.config.allowed_origins, "web server listening");
+    let limits = state.config.limits();
+    listener::serve(listener, router(Arc::clone(&state)), limits, shutdown, stop_tx).await;
     broadcaster.abort();
     sweeper.abort();
-    result.map_err(|source| WebError::Io { addr, source })
+    Ok(())
 }
 
 /// Binds `config.listen` and serves forever.
@@ -225,7 +314,9 @@ impl WebHandle {
         format!("http://{}", self.addr)
     }
 
-    /// Stops the server and waits for it (at most about a second for open streams).
+    /// Stops the server and waits for it: requests in progress get the configured
+    /// `shutdown_grace`, blocking work left behind (a backend call that does not return)
+    /// another 250 ms, then it is abandoned.
     ///
     /// # Errors
     /// The server's own error, if it failed while running.
@@ -263,11 +354,19 @@ pub fn start(
     backend: Arc<dyn MachineBackend>,
     lab: Arc<Lab>,
 ) -> Result<WebHandle, WebError> {
+    config.validate()?;
     let listen = config.listen;
     let io = |source| WebError::Io { addr: listen, source };
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .thread_name("motus-web")
+        // Web work yields to the machine: workers and blocking threads at nice +10 under the
+        // process's real-time policy (docs/decisions.md, "Real-time priorities").
+        .on_thread_start(motus_realtime::demote_current_thread_for_web)
+        // Blocking work (logins, device commands, program checks) on at most 32 threads: a
+        // burst of 200 logins otherwise started 200 threads that periodic blocking tasks kept
+        // alive for good (tokio wakes its idle threads in turn), +136 MB that never went back.
+        .max_blocking_threads(32)
         .enable_all()
         .build()
         .map_err(io)?;
@@ -279,6 +378,7 @@ pub fn start(
     let thread = std::thread::Builder::new()
         .name("motus-web-main".into())
         .spawn(move || {
+            motus_realtime::demote_current_thread_for_web();
             let r = rt.block_on(async move {
                 let listener =
                     TcpListener::from_std(std_listener).map_err(|source| WebError::Io { addr, source })?;
@@ -287,7 +387,7 @@ pub fn start(
                 })
                 .await
             });
-            rt.shutdown_timeout(Duration::from_secs(1));
+            rt.shutdown_timeout(Duration::from_millis(250));
             r
         })
         .map_err(io)?;

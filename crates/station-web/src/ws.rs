@@ -5,7 +5,12 @@
 //! channel; each client task forwards the latest frame (a slow client skips frames rather
 //! than queueing them). The broadcaster also raises and clears the lab alarms for
 //! SafeToRun and the E-stop. A client is closed when its session ends or expires.
+//!
+//! An upgrade from a browser page is accepted only from the allowed origins
+//! (`WebConfig::allowed_origins`, by default the origins the server is reached at): a
+//! cross-site page cannot use a student's cookie to watch the station.
 
+use std::net::{IpAddr, Ipv6Addr, SocketAddr};
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -14,7 +19,7 @@ use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::extract::State;
 use axum::http::{header, HeaderMap};
 use axum::response::{IntoResponse, Response};
-use motus_lab::{Severity, UnixMs};
+use motus_lab::{AuditEntry, AuditOutcome, Severity, UnixMs};
 use serde_json::{json, Value};
 
 use crate::auth::authenticate;
@@ -24,18 +29,141 @@ use crate::server::{AppState, Inner};
 /// Samples per frame at most (the newest are kept).
 const MAX_SAMPLES_PER_FRAME: usize = 200;
 
-/// Cross-site WebSocket hijacking guard: a browser always sends `Origin`; when it does, its
-/// host must be the one the request was sent to.
-fn same_origin(headers: &HeaderMap) -> bool {
-    let Some(origin) = headers.get(header::ORIGIN).and_then(|v| v.to_str().ok()) else { return true };
-    let host = headers.get(header::HOST).and_then(|v| v.to_str().ok()).unwrap_or("");
-    origin.split_once("://").is_some_and(|(_, h)| h == host)
+/// `origin` as `scheme://host:port` (lower case, the scheme's default port written out, an
+/// IPv6 address in its canonical form), or `None` if it is not an `http`/`https` origin
+/// (a path, user info, `null`...).
+#[must_use]
+pub fn normalize_origin(origin: &str) -> Option<String> {
+    let (scheme, rest) = origin.trim().split_once("://")?;
+    let scheme = scheme.to_ascii_lowercase();
+    let default_port: u16 = match scheme.as_str() {
+        "http" => 80,
+        "https" => 443,
+        _ => return None,
+    };
+    let rest = rest.strip_suffix('/').unwrap_or(rest);
+    if rest.is_empty() || rest.contains(['/', '?', '#', '@', ' ', '\\']) {
+        return None;
+    }
+    let (host, port) = if let Some(v6) = rest.strip_prefix('[') {
+        let (h, after) = v6.split_once(']')?;
+        let ip: Ipv6Addr = h.parse().ok()?;
+        let port = if after.is_empty() { None } else { Some(after.strip_prefix(':')?) };
+        (format!("[{ip}]"), port)
+    } else {
+        match rest.rsplit_once(':') {
+            Some((h, p)) => (h.to_ascii_lowercase(), Some(p)),
+            None => (rest.to_ascii_lowercase(), None),
+        }
+    };
+    if host.is_empty() || (host.contains(':') && !host.starts_with('[')) {
+        return None;
+    }
+    let port = match port {
+        None => default_port,
+        Some(p) => p.parse().ok()?,
+    };
+    Some(format!("{scheme}://{host}:{port}"))
 }
 
-/// `GET /api/ws` (401 without a session, 403 from another origin).
+fn http_origin(host: &str, port: u16) -> Option<String> {
+    normalize_origin(&format!("http://{host}:{port}"))
+}
+
+fn ip_host(ip: IpAddr) -> String {
+    match ip {
+        IpAddr::V4(v4) => v4.to_string(),
+        IpAddr::V6(v6) => format!("[{v6}]"),
+    }
+}
+
+/// The origins of pages served from `addr`: `http://<ip>:<port>`; on a loopback address
+/// also `localhost`, `127.0.0.1` and `[::1]`; on an unspecified address (`0.0.0.0`, `::`)
+/// those, every local interface address (IPv6 link-local ones aside) and the host name.
+#[must_use]
+pub fn served_origins(addr: SocketAddr) -> Vec<String> {
+    let port = addr.port();
+    let ip = addr.ip();
+    let mut hosts = vec![ip_host(ip)];
+    if ip.is_loopback() || ip.is_unspecified() {
+        hosts.extend(["localhost".to_string(), "127.0.0.1".to_string(), "[::1]".to_string()]);
+    }
+    if ip.is_unspecified() {
+        match nix::ifaddrs::getifaddrs() {
+            Ok(ifs) => {
+                for a in ifs.filter_map(|i| i.address) {
+                    let found = a
+                        .as_sockaddr_in()
+                        .map(|s| IpAddr::V4(s.ip()))
+                        .or_else(|| a.as_sockaddr_in6().map(|s| IpAddr::V6(s.ip())));
+                    match found {
+                        Some(IpAddr::V6(v6))
+                            if v6.segments().first().is_some_and(|s| s & 0xffc0 == 0xfe80) => {}
+                        Some(ip) if ip.is_ipv4() || addr.is_ipv6() => hosts.push(ip_host(ip)),
+                        _ => {}
+                    }
+                }
+            }
+            Err(e) => tracing::warn!(error = %e, "cannot list the interface addresses"),
+        }
+        if let Ok(name) = nix::unistd::gethostname() {
+            if let Some(name) = name.to_str() {
+                hosts.push(name.to_string());
+            }
+        }
+    }
+    let mut out: Vec<String> = hosts.iter().filter_map(|h| http_origin(h, port)).collect();
+    let mut seen = std::collections::HashSet::new();
+    out.retain(|o| seen.insert(o.clone()));
+    out
+}
+
+/// The allowed WebSocket origins: `configured` normalised, or [`served_origins`] of `addr`
+/// when it is empty.
+///
+/// # Errors
+/// The first configured entry that is not an origin.
+pub fn resolve_origins(configured: &[String], addr: SocketAddr) -> Result<Vec<String>, String> {
+    if configured.is_empty() {
+        return Ok(served_origins(addr));
+    }
+    configured
+        .iter()
+        .map(|o| {
+            normalize_origin(o).ok_or_else(|| format!("allowed origin {o:?} is not scheme://host[:port]"))
+        })
+        .collect()
+}
+
+/// Cross-site WebSocket hijacking guard: a browser always sends `Origin`; when it does, it
+/// must be one of the station's allowed origins (the `Host` header proves nothing: a
+/// rebound DNS name sends a matching one). A request without `Origin` is not a browser's
+/// and still needs a valid session.
+fn check_origin(headers: &HeaderMap, allowed: &[String]) -> Result<(), String> {
+    let Some(origin) = headers.get(header::ORIGIN) else { return Ok(()) };
+    let text = String::from_utf8_lossy(origin.as_bytes());
+    match normalize_origin(&text) {
+        Some(o) if allowed.contains(&o) => Ok(()),
+        _ => Err(format!("WebSocket from origin {text:?}, which is not allowed")),
+    }
+}
+
+/// `GET /api/ws` (401 without a session, 403 from an origin not allowed, audited).
 pub async fn handler(State(state): State<AppState>, headers: HeaderMap, ws: WebSocketUpgrade) -> Response {
-    if !same_origin(&headers) {
-        return ApiError::forbidden("WebSocket from another origin").into_response();
+    if let Err(why) = check_origin(&headers, &state.config.allowed_origins) {
+        let user =
+            authenticate(&state, &headers).map_or_else(|_| "anonymous".to_string(), |a| a.session.user);
+        let entry = AuditEntry {
+            time: state.now(),
+            user,
+            action: "websocket".into(),
+            target: "GET /api/ws".into(),
+            outcome: AuditOutcome::Denied(why.clone()),
+        };
+        if let Err(e) = state.lab.audit().append(&entry) {
+            tracing::error!(error = %e, "audit write failed");
+        }
+        return ApiError::forbidden(why).mark_audited().into_response();
     }
     match authenticate(&state, &headers) {
         Ok(auth) => {
@@ -229,5 +357,66 @@ pub async fn broadcast(state: AppState) {
                 b = Broadcaster::default();
             }
         }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn origins_are_normalised() {
+        assert_eq!(normalize_origin("http://127.0.0.1:8080").unwrap(), "http://127.0.0.1:8080");
+        assert_eq!(normalize_origin("HTTP://Station.Lab").unwrap(), "http://station.lab:80");
+        assert_eq!(normalize_origin("https://lab.example.org/").unwrap(), "https://lab.example.org:443");
+        assert_eq!(normalize_origin("http://[0:0::1]:9000").unwrap(), "http://[::1]:9000");
+        for bad in [
+            "null",
+            "",
+            "station:8080",
+            "ftp://a",
+            "http://",
+            "http://a/b",
+            "http://u@a",
+            "http://a:b:1",
+            "http://a:x",
+        ] {
+            assert_eq!(normalize_origin(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn served_origins_of_loopback_and_specific_addresses() {
+        let o = served_origins("127.0.0.1:8080".parse().unwrap());
+        assert_eq!(o, ["http://127.0.0.1:8080", "http://localhost:8080", "http://[::1]:8080"]);
+        let o = served_origins("192.168.1.20:80".parse().unwrap());
+        assert_eq!(o, ["http://192.168.1.20:80"]);
+        let any = served_origins("0.0.0.0:8080".parse().unwrap());
+        assert!(any.contains(&"http://localhost:8080".to_string()), "{any:?}");
+        assert!(any.len() >= 4, "{any:?}");
+    }
+
+    #[test]
+    fn the_origin_must_be_allowed_and_the_host_header_proves_nothing() {
+        let allowed = resolve_origins(&[], "127.0.0.1:8080".parse().unwrap()).unwrap();
+        let with = |origin: &str, host: &str| {
+            let mut h = HeaderMap::new();
+            h.insert(header::ORIGIN, origin.parse().unwrap());
+            h.insert(header::HOST, host.parse().unwrap());
+            check_origin(&h, &allowed)
+        };
+        assert!(with("http://localhost:8080", "localhost:8080").is_ok());
+        assert!(with("http://127.0.0.1:8080", "127.0.0.1:8080").is_ok());
+        assert!(
+            with("http://evil.example:8080", "evil.example:8080").is_err(),
+            "rebound name, matching Host"
+        );
+        assert!(with("http://127.0.0.1:8081", "127.0.0.1:8080").is_err());
+        assert!(check_origin(&HeaderMap::new(), &allowed).is_ok(), "no Origin: not a browser");
+        let configured =
+            resolve_origins(&["https://lab.example.org".into()], "0.0.0.0:443".parse().unwrap()).unwrap();
+        assert_eq!(configured, ["https://lab.example.org:443"]);
+        assert!(resolve_origins(&["lab.example.org".into()], "0.0.0.0:443".parse().unwrap()).is_err());
     }
 }

@@ -25,6 +25,9 @@ pub enum AlarmCode {
     TaskError,
     /// A device is disconnected; its axes are faulted and stopped.
     DeviceDisconnected,
+    /// A connected device latched a condition that only the operator can clear (a KV-01
+    /// module's safety time-out needs a power cycle); the message says what to do.
+    DeviceLatched,
 }
 
 impl AlarmCode {
@@ -35,6 +38,7 @@ impl AlarmCode {
             AlarmCode::TaskDegraded => "task_degraded",
             AlarmCode::TaskError => "task_error",
             AlarmCode::DeviceDisconnected => "device_disconnected",
+            AlarmCode::DeviceLatched => "device_latched",
         }
     }
 }

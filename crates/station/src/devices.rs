@@ -42,6 +42,14 @@ pub trait DeviceHandle: Send {
     fn is_connected(&mut self) -> bool;
     /// Names of the axes this device moves.
     fn axes(&self) -> Vec<String>;
+    /// A condition of the connected device that only the operator can clear (a KV-01
+    /// module's latched safety time-out needs a power cycle), as a sentence that says what
+    /// to do; `None` when there is none (the default). Checked on every poll while the
+    /// device is connected: the [`AlarmCode::DeviceLatched`] alarm is raised once when it
+    /// appears (or its text changes) and cleared when it is gone.
+    fn needs_operator(&mut self) -> Option<String> {
+        None
+    }
 }
 
 /// Where the reconnector marks axes faulted (and asks for their stop) and clears them.
@@ -185,6 +193,33 @@ struct Entry {
     axes: Vec<String>,
     state: ConnState,
     losses: u64,
+    /// The operator condition the active [`AlarmCode::DeviceLatched`] alarm reports.
+    latched: Option<String>,
+}
+
+/// Raises the device's [`AlarmCode::DeviceLatched`] alarm once when its operator condition
+/// appears (or changes), and clears it when it is gone.
+fn update_latched(e: &mut Entry, name: &str, alarms: &dyn AlarmSink) {
+    let now = e.handle.needs_operator();
+    if now == e.latched {
+        return;
+    }
+    match &now {
+        Some(message) => {
+            tracing::error!(device = %name, "{message}");
+            alarms.raise(Alarm {
+                code: AlarmCode::DeviceLatched,
+                severity: AlarmSeverity::Error,
+                source: device_source(name),
+                message: message.clone(),
+            });
+        }
+        None => {
+            tracing::info!(device = %name, "the device's latched condition is cleared");
+            alarms.clear(&device_source(name), AlarmCode::DeviceLatched);
+        }
+    }
+    e.latched = now;
 }
 
 /// Keeps devices connected.
@@ -222,7 +257,7 @@ impl Reconnector {
         for a in &axes {
             self.gate.fault(a, &format!("device {} not connected yet", handle.name()));
         }
-        self.entries.push(Entry { handle, axes, state: ConnState::Pending, losses: 0 });
+        self.entries.push(Entry { handle, axes, state: ConnState::Pending, losses: 0, latched: None });
     }
 
     /// Every device's state.
@@ -259,6 +294,7 @@ impl Reconnector {
             let due = match &e.state {
                 ConnState::Connected => {
                     if e.handle.is_connected() {
+                        update_latched(e, &name, &*self.alarms);
                         continue;
                     }
                     e.losses += 1;
@@ -301,8 +337,9 @@ impl Reconnector {
                     }
                     self.alarms.clear(&device_source(&name), AlarmCode::DeviceDisconnected);
                     tracing::info!(device = %name, after_failures = failures, "device connected");
-                    events.push(DeviceEvent::Connected { device: name, after_failures: failures });
                     e.state = ConnState::Connected;
+                    update_latched(e, &name, &*self.alarms);
+                    events.push(DeviceEvent::Connected { device: name, after_failures: failures });
                 }
                 Err(err) => {
                     let failures = failures + 1;
@@ -458,6 +495,66 @@ mod tests {
         assert_eq!(r.rec.status()[1].state, ConnState::Connected);
         assert_eq!(r.alarms.raised().len(), 1);
         assert_eq!(r.alarms.raised()[0].source, "device:wheels");
+    }
+
+    /// A connected device whose latched operator condition the test sets.
+    struct LatchingDevice {
+        latched: Arc<Mutex<Option<String>>>,
+        up: Arc<AtomicBool>,
+    }
+
+    impl DeviceHandle for LatchingDevice {
+        fn name(&self) -> &str {
+            "arm"
+        }
+        fn connect(&mut self) -> Result<(), DeviceError> {
+            self.up.store(true, Ordering::SeqCst);
+            Ok(())
+        }
+        fn is_connected(&mut self) -> bool {
+            self.up.load(Ordering::SeqCst)
+        }
+        fn axes(&self) -> Vec<String> {
+            vec!["joint1".into()]
+        }
+        fn needs_operator(&mut self) -> Option<String> {
+            self.latched.lock().unwrap().clone()
+        }
+    }
+
+    #[test]
+    fn a_latched_condition_is_one_alarm_until_it_is_gone() {
+        let alarms = Arc::new(MemoryAlarms::new());
+        let faults = Arc::new(FaultTable::new());
+        let mut rec = Reconnector::new(Backoff::default(), alarms.clone(), faults.clone());
+        let latched = Arc::new(Mutex::new(None));
+        let up = Arc::new(AtomicBool::new(false));
+        rec.add(Box::new(LatchingDevice { latched: latched.clone(), up: up.clone() }));
+        let t0 = Instant::now();
+        let ms = Duration::from_millis;
+        rec.poll(t0);
+        assert!(alarms.raised().is_empty());
+        let text = "KV-01 module 3 latched its 700 ms communication time-out: power-cycle the arm";
+        *latched.lock().unwrap() = Some(text.to_string());
+        // Polled every 100 ms for 10 s: raised once, with the operator's sentence.
+        for step in 1..=100u64 {
+            rec.poll(t0 + ms(step * 100));
+        }
+        let raised = alarms.raised();
+        assert_eq!(raised.len(), 1, "{raised:?}");
+        assert_eq!(raised[0].code, AlarmCode::DeviceLatched);
+        assert_eq!(raised[0].source, "device:arm");
+        assert_eq!(raised[0].message, text);
+        assert!(alarms.is_active("device:arm", AlarmCode::DeviceLatched));
+        assert!(faults.faulted().is_empty(), "the device is connected: its axes are not gated");
+        // Power-cycled: the device is lost and comes back without the condition.
+        up.store(false, Ordering::SeqCst);
+        *latched.lock().unwrap() = None;
+        rec.poll(t0 + ms(10_100));
+        assert!(alarms.is_active("device:arm", AlarmCode::DeviceLatched), "still latched while away");
+        rec.poll(t0 + ms(10_200));
+        assert!(alarms.active().is_empty(), "{:?}", alarms.active());
+        assert_eq!(alarms.raised().len(), 2, "plus the disconnection");
     }
 
     #[test]

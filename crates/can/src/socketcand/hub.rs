@@ -112,8 +112,10 @@ impl Hub {
             dirty: Vec::new(),
             again: Vec::new(),
         };
-        let thread =
-            std::thread::Builder::new().name("socketcand-hub".into()).spawn(move || event_loop.run())?;
+        let thread = std::thread::Builder::new().name("socketcand-hub".into()).spawn(move || {
+            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
+            event_loop.run()
+        })?;
         tracing::info!(%local_addr, bitrate = ?config.bitrate, "socketcand hub listening");
         Ok(Hub { local_addr, channel: config.channel, shared, waker, thread: Some(thread) })
     }

@@ -10,6 +10,7 @@ use motus_canopen_protocol::{CanFrame, NmtState};
 
 use crate::error::MasterError;
 
+use super::failure_log::FailureLog;
 use super::Master;
 
 /// A running heartbeat producer; stops on [`HeartbeatProducer::stop`] or drop (as when the
@@ -68,12 +69,18 @@ impl Master {
         let thread = std::thread::Builder::new()
             .name("canopen-heartbeat".into())
             .spawn(move || {
+                // The cell's drives stop (EMCY 0x8130) when this heartbeat is late.
+                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
                 let mut next = Instant::now();
+                // While the bus is down every heartbeat fails: logged once, then summarised.
+                let mut failures = FailureLog::new("the master's heartbeat", Duration::from_secs(5));
+                let bus = inner.bus.describe();
                 while !stop2.load(Ordering::Acquire) {
                     let now = Instant::now();
                     if now >= next {
-                        if let Err(e) = inner.send(&frame, || "sending the master's heartbeat".into()) {
-                            tracing::warn!(error = %e, "heartbeat not sent");
+                        match inner.send(&frame, || "sending the master's heartbeat".into()) {
+                            Ok(()) => failures.succeed(now, &bus),
+                            Err(e) => failures.fail(now, &e, &bus),
                         }
                         next += period;
                         if next < now {

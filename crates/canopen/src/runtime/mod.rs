@@ -2,6 +2,7 @@
 //! calling thread only. SDO transfers to different nodes run in parallel (one channel
 //! per node), transfers to the same node are serialised.
 
+mod failure_log;
 mod heartbeat_producer;
 mod lss_ops;
 mod sdo_ops;
@@ -240,13 +241,21 @@ impl Inner {
     }
 
     fn receive_loop(self: Arc<Self>) {
+        // A closed transport fails every receive: one line when it starts, a summary every
+        // few seconds, one line when it works again.
+        let mut failures = failure_log::FailureLog::new("CAN receive", Duration::from_secs(5));
+        let bus = self.bus.describe();
         while self.running.load(Ordering::Acquire) {
             match self.bus.recv(Duration::from_millis(5)) {
-                Ok(Some(r)) => self.dispatch(r),
-                Ok(None) => {}
+                Ok(r) => {
+                    failures.succeed(Instant::now(), &bus);
+                    if let Some(r) = r {
+                        self.dispatch(r);
+                    }
+                }
                 Err(e) => {
                     self.stats.transport_errors.fetch_add(1, Ordering::Relaxed);
-                    tracing::warn!(error = %e, bus = %self.bus.describe(), "CAN receive failed");
+                    failures.fail(Instant::now(), &e, &bus);
                     std::thread::sleep(Duration::from_millis(20));
                 }
             }
@@ -288,7 +297,10 @@ impl Master {
         let rx = Arc::clone(&inner);
         let rx_thread = std::thread::Builder::new()
             .name("canopen-master-rx".into())
-            .spawn(move || rx.receive_loop())
+            .spawn(move || {
+                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
+                rx.receive_loop()
+            })
             .map_err(|e| tracing::error!(error = %e, "cannot spawn the receive thread"))
             .ok();
         Master { inner, rx_thread }
@@ -343,6 +355,19 @@ impl Master {
     /// When `node` was last heard (boot-up or heartbeat).
     pub fn last_heartbeat(&self, node: u8) -> Option<Instant> {
         lock(&self.inner.nodes).get(node).map(|e| e.last_seen)
+    }
+
+    /// How many boot-up messages (COB-ID 0x700 + node, data 0x00) of `node` this master
+    /// has received: a change means the node restarted and lost its configuration (PDO
+    /// set, heartbeat consumer and producer, NMT state), so whoever brought it up must do
+    /// it again.
+    pub fn boot_count(&self, node: u8) -> u64 {
+        lock(&self.inner.nodes).get(node).map_or(0, |e| e.boots)
+    }
+
+    /// Whether `node` is monitored ([`Self::monitor_heartbeat`]) and its heartbeat is lost now.
+    pub fn heartbeat_lost(&self, node: u8) -> bool {
+        lock(&self.inner.heartbeat).is_lost(node)
     }
 
     /// Waits for a boot-up message of `node` received after this call.

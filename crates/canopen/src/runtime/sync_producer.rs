@@ -73,6 +73,7 @@ impl Master {
         let thread = std::thread::Builder::new()
             .name("canopen-sync".into())
             .spawn(move || {
+                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
                 while !stop2.load(Ordering::Acquire) {
                     let now = Instant::now();
                     let due = schedule.next_deadline();

@@ -83,7 +83,7 @@ pub fn icla(a: SimIclaArgs) -> Result<()> {
             }
         })
         .collect();
-    let (drives, _robot) = if robot {
+    let (drives, robot, drives_thread) = if robot {
         let [d1, d2, d3]: [SimConfig; 3] = configs
             .try_into()
             .map_err(|_| anyhow::anyhow!("the robot needs exactly three drives (--nodes 2,3,4)"))?;
@@ -101,17 +101,13 @@ pub fn icla(a: SimIclaArgs) -> Result<()> {
         };
         let cfg = SimRobotConfig { drives: [d1, d2, d3], slip, mouse_link, ..SimRobotConfig::seed() };
         let robot = SimRobot::start(bus, cfg)?;
-        (Arc::clone(robot.drives()), Some(robot))
+        (Arc::clone(robot.drives()), Some(robot), None)
     } else {
         let drives: motus_icla_sim::SharedDrives =
             Arc::new(std::sync::Mutex::new(configs.into_iter().map(SimDrive::new).collect()));
         let (d, s) = (Arc::clone(&drives), Arc::clone(&stop));
-        std::thread::spawn(move || {
-            if let Err(e) = motus_icla_sim::run_shared(bus, d, s) {
-                eprintln!("error: simulated drives stopped: {e}");
-            }
-        });
-        (drives, None)
+        let t = std::thread::spawn(move || motus_icla_sim::run_shared(bus, d, s));
+        (drives, None, Some(t))
     };
     eprintln!("simulated IclA drives ready on {uri}: {}; Ctrl-C to stop", description.join(", "));
     let silence =
@@ -124,8 +120,22 @@ pub fn icla(a: SimIclaArgs) -> Result<()> {
         .context("--fault NODE:MS:CODE[:CLEAR]")?;
     let start = Instant::now();
     let (mut silenced, mut faulted, mut cleared) = (false, false, false);
+    let mut drives_thread = drives_thread;
     while !stop.load(Ordering::Relaxed) {
         std::thread::sleep(Duration::from_millis(5));
+        // The bus closed (the hub stopped): the drives are cut off; exit, as a process
+        // supervisor expects, instead of running on with nothing to serve.
+        let failure = match drives_thread.take_if(|t| t.is_finished()) {
+            Some(t) => match t.join() {
+                Ok(Ok(())) => None,
+                Ok(Err(e)) => Some(e.to_string()),
+                Err(_) => Some("the drives' thread panicked".to_owned()),
+            },
+            None => robot.as_ref().and_then(SimRobot::bus_failure),
+        };
+        if let Some(reason) = failure {
+            bail!("the CAN bus {uri} is gone ({reason}): the simulated drives stop; start the simulator again when the bus is back");
+        }
         let t = start.elapsed();
         let mut g = lock(&drives);
         if let Some(s) = &silence {

@@ -148,8 +148,10 @@ impl SegmentBuilder {
                 spinning.push(cn);
             } else {
                 let stop = Arc::clone(&stop);
-                let t =
-                    std::thread::Builder::new().name(format!("epl-cn{node}")).spawn(move || cn.run(&stop))?;
+                let t = std::thread::Builder::new().name(format!("epl-cn{node}")).spawn(move || {
+                    motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Simulator);
+                    cn.run(&stop)
+                })?;
                 threads.push(t);
             }
             cns.push((node, shared));
@@ -160,13 +162,18 @@ impl SegmentBuilder {
             threads.push(
                 std::thread::Builder::new()
                     .name("epl-cns".into())
+                    // Not promoted: a thread that polls without sleeping under SCHED_FIFO would
+                    // take its CPU from every normal thread (motus_realtime).
                     .spawn(move || cn::run_spinning(spinning, &stop))?,
             );
         }
         let mn_shared = Arc::new(mn::MnShared::default());
         let mn = mn::Mn::new(mn_link, self.config, &nodes, self.program, Arc::clone(&mn_shared));
         let stop_mn = Arc::clone(&stop);
-        let started = std::thread::Builder::new().name("epl-mn".into()).spawn(move || mn.run(&stop_mn));
+        let started = std::thread::Builder::new().name("epl-mn".into()).spawn(move || {
+            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
+            mn.run(&stop_mn)
+        });
         match started {
             Ok(t) => threads.push(t),
             Err(e) => {

@@ -21,7 +21,7 @@ pub fn at(offset_ms: i64) -> UnixMs {
 pub fn config() -> LabConfig {
     let mut c = LabConfig::default();
     c.password.hash = FAST;
-    c.student_limits.axes.insert("x".into(), MotionLimits { max_speed: 1.0, max_acceleration: 10.0 });
+    c.student_limits.axes.insert("x".into(), MotionLimits::new(1.0, 10.0));
     c
 }
 

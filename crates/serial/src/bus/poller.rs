@@ -40,6 +40,7 @@ impl Poller {
         let mut tasks: Vec<(Duration, Instant, Task)> =
             self.tasks.into_iter().map(|(p, t)| (p, Instant::now(), t)).collect();
         let thread = std::thread::Builder::new().name("motus-poller".into()).spawn(move || {
+            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
             while !flag.load(Ordering::Relaxed) {
                 let now = Instant::now();
                 for (period, due, task) in tasks.iter_mut() {

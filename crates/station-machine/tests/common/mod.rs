@@ -1,6 +1,8 @@
 //! The station's HTTP API from a test: a raw HTTP/1.1 client and a logged-in session.
 #![allow(dead_code, clippy::unwrap_used, clippy::indexing_slicing)]
 
+pub mod web;
+
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
@@ -115,7 +117,11 @@ pub fn station() -> Station {
     use std::sync::Arc;
     let dir = tempfile::tempdir().unwrap();
     let cell_file = motus_station_machine::demo::write_demo_cell(dir.path(), "127.0.0.1:0").unwrap();
-    let lab = Arc::new(Lab::new(Arc::new(MemoryStore::new()), LabConfig::default()));
+    let cell = motus_station::config::load(&cell_file).unwrap_or_else(|e| panic!("{e}"));
+    let mut lab_config: LabConfig = motus_station_machine::lab_config(&cell, false);
+    // Cheap hashes: tests log in often (the cost is not under test here).
+    lab_config.password.hash = motus_lab::HashParams { memory_kib: 64, iterations: 1, parallelism: 1 };
+    let lab = Arc::new(Lab::new(Arc::new(MemoryStore::new()), lab_config));
     let now = UnixMs::from(std::time::SystemTime::now());
     lab.users().add("admin", "admin-password-1", Role::Admin, now).unwrap();
     lab.users().add("student", "student-password-1", Role::Student, now).unwrap();
@@ -133,4 +139,49 @@ pub fn station() -> Station {
     let web = motus_station_web::start(config, machine.clone(), lab).unwrap();
     let addr = web.addr().to_string();
     Station { dir, machine, web, addr }
+}
+
+/// True for a refusal that only says the device is (re)connecting (a loaded host drops a
+/// serial reply now and then; the station reconnects by itself).
+pub fn reconnecting(code: u16, v: &Value) -> bool {
+    let d = v["detail"].as_str().unwrap_or("");
+    code == 409 && (d.contains("reconnecting") || d.contains("not connected"))
+}
+
+impl Client {
+    /// `call`, retried while the axis's device is reconnecting (up to 60 s); any other
+    /// answer is returned.
+    pub fn call_connected(&self, method: &str, path: &str, body: Value) -> (u16, Value) {
+        let t0 = Instant::now();
+        loop {
+            let (code, v) = self.call(method, path, body.clone());
+            if !reconnecting(code, &v) || t0.elapsed() > Duration::from_secs(60) {
+                return (code, v);
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        }
+    }
+
+    /// Homes `id` and waits until it is homed and still; homes again when the device was
+    /// lost meanwhile (up to 5 times).
+    pub fn home(&self, id: &str) {
+        for attempt in 1..=5 {
+            self.wait_axis(id, Duration::from_secs(60), "connected", |a| a["fault"].is_null());
+            let (code, v) = self.call_connected("POST", &format!("/api/axes/{id}/home"), Value::Null);
+            assert_eq!(code, 200, "home {id}: {v}");
+            let t0 = Instant::now();
+            loop {
+                let a = self.axis(id);
+                if a["homed"] == true && a["moving"] == false && a["fault"].is_null() {
+                    return;
+                }
+                if a["fault"].is_string() || t0.elapsed() > Duration::from_secs(60) {
+                    eprintln!("home {id} (attempt {attempt}) disturbed: {a}");
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        }
+        panic!("{id}: not homed after 5 attempts");
+    }
 }

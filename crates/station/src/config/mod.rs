@@ -18,7 +18,7 @@ pub use error::{ConfigError, ConfigErrors};
 pub use model::{
     AxisConfig, Cell, Device, DeviceKind, Group, GroupKind, Limits, Link, LinkKind, Program, Station,
     StudentLimits, Supervisor, TaskClassConfig, TaskConfig, TaskKind, Unit, DEFAULT_LISTEN,
-    DEFAULT_OVERRUN_LIMIT,
+    DEFAULT_OVERRUN_LIMIT, DEFAULT_PROGRAM_CHECK_TIME,
 };
 
 use error::Locator;

@@ -110,7 +110,18 @@ pub struct Station {
     pub listen: SocketAddr,
     /// Where the station keeps its data (default `data` beside the cell file).
     pub data_dir: PathBuf,
+    /// Origins (`http://host:port`, `https://host`) whose pages may open the station's
+    /// WebSocket, e.g. the name the browsers use when the station listens on `0.0.0.0` or
+    /// behind a proxy. Empty (default): the origins the web server is served on.
+    pub origins: Vec<String>,
+    /// Longest time one check of an uploaded G-code program may take (`program_check_time`
+    /// in seconds, default [`DEFAULT_PROGRAM_CHECK_TIME`]); beyond it the check stops with
+    /// an error and the program cannot run.
+    pub program_check_time: std::time::Duration,
 }
+
+/// The default time budget of a program check.
+pub const DEFAULT_PROGRAM_CHECK_TIME: std::time::Duration = std::time::Duration::from_secs(3);
 
 /// The default listen address.
 pub const DEFAULT_LISTEN: &str = "127.0.0.1:8080";
@@ -280,7 +291,9 @@ pub struct Limits {
     pub max: f64,
 }
 
-/// What a student may do with an axis: always inside the machine limits.
+/// What a student may do with an axis: always inside the machine limits. Every field of the
+/// cell file's `student` table defaults to the machine's value; an axis without the table has
+/// no student limits and students cannot move it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StudentLimits {
     /// Allowed positions (defaults to the machine limits).
@@ -310,8 +323,10 @@ pub struct AxisConfig {
     pub max_velocity: f64,
     /// Machine acceleration limit (SI, positive).
     pub max_acceleration: f64,
-    /// Student limits (the machine limits when not given).
-    pub student: StudentLimits,
+    /// Student limits; `None` (no `student` table in the cell file): students cannot move
+    /// this axis at all (fail closed). A table with some keys missing takes the machine's
+    /// values for them.
+    pub student: Option<StudentLimits>,
 }
 
 /// What a group of axes is.

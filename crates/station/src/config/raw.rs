@@ -31,6 +31,9 @@ pub(crate) struct RawStation {
     pub name: Spanned<String>,
     pub listen: Option<Spanned<String>>,
     pub data_dir: Option<Spanned<String>>,
+    #[serde(default)]
+    pub origins: Vec<Spanned<String>>,
+    pub program_check_time: Option<Spanned<f64>>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -98,9 +98,9 @@ fn base_cell_is_valid_and_converted() {
     assert_eq!(x.limits, Limits { min: 0.0, max: 0.5 });
     // Student: max given (0.4), min defaults to the machine's 0.0, velocity 0.05 given,
     // acceleration defaults to the machine's 1.0.
-    assert_eq!(x.student.limits, Limits { min: 0.0, max: 0.4 });
-    assert_eq!(x.student.max_velocity, 0.05);
-    assert_eq!(x.student.max_acceleration, 1.0);
+    assert_eq!(x.student.unwrap().limits, Limits { min: 0.0, max: 0.4 });
+    assert_eq!(x.student.unwrap().max_velocity, 0.05);
+    assert_eq!(x.student.unwrap().max_acceleration, 1.0);
     assert_eq!(x.scale.si_per_unit(), 1e-5);
     assert_eq!(cell.axes_of_device("w1")[0].name, "w");
     let classes = cell.task_classes();
@@ -249,6 +249,17 @@ fn axis_index_must_fit_device() {
 }
 
 #[test]
+fn program_check_time_defaults_and_is_bounded() {
+    assert_eq!(parse(BASE).unwrap().station.program_check_time, super::DEFAULT_PROGRAM_CHECK_TIME);
+    let text = BASE.replace("name = \"test\"", "name = \"test\"\nprogram_check_time = 0.5");
+    assert_eq!(parse(&text).unwrap().station.program_check_time, std::time::Duration::from_millis(500));
+    for bad in ["0", "-1", "601", "nan"] {
+        let text = BASE.replace("name = \"test\"", &format!("name = \"test\"\nprogram_check_time = {bad}"));
+        assert_eq!(one_error(&text).key, "station.program_check_time", "{bad}");
+    }
+}
+
+#[test]
 fn listen_address_and_missing_files() {
     let text = BASE.replace("name = \"test\"", "name = \"test\"\nlisten = \"localhost\"");
     assert_eq!(one_error(&text).key, "station.listen");
@@ -281,4 +292,19 @@ fn missing_field_and_wrong_type_name_the_table_and_key() {
     let e = one_error(&text);
     assert_eq!(e.key, "device[0].simulate");
     assert_eq!((e.line, e.column), (line_of(&text, "simulate = \"yes\""), 12));
+}
+
+#[test]
+fn station_origins_are_scheme_host_port() {
+    let text = BASE.replace(
+        "name = \"test\"",
+        "name = \"test\"\norigins = [\"http://station.lab:8080\", \"https://lab.example.org/\"]",
+    );
+    let cell = parse_with(Path::new("cell.toml"), &text, &|_| true).unwrap();
+    assert_eq!(cell.station.origins, ["http://station.lab:8080", "https://lab.example.org/"]);
+    assert!(parse_with(Path::new("cell.toml"), BASE, &|_| true).unwrap().station.origins.is_empty());
+    for bad in ["station.lab:8080", "http://", "http://a/b", "ftp://a"] {
+        let text = BASE.replace("name = \"test\"", &format!("name = \"test\"\norigins = [{bad:?}]"));
+        assert_eq!(one_error(&text).key, "station.origins", "{bad}");
+    }
 }

@@ -11,7 +11,7 @@ use toml::Spanned;
 use super::error::{ConfigError, Locator};
 use super::model::{
     AxisConfig, Cell, Device, DeviceKind, Group, Limits, Link, LinkKind, Program, Station, StudentLimits,
-    Supervisor, TaskConfig, TaskKind, DEFAULT_LISTEN, DEFAULT_OVERRUN_LIMIT,
+    Supervisor, TaskConfig, TaskKind, DEFAULT_LISTEN, DEFAULT_OVERRUN_LIMIT, DEFAULT_PROGRAM_CHECK_TIME,
 };
 use super::raw::{RawAxis, RawCell, RawDevice, RawStudent, RawTask};
 
@@ -177,10 +177,42 @@ impl<'a> Validator<'a> {
             }
         };
         let fallback = SocketAddr::from(([127, 0, 0, 1], 8080));
+        for o in &s.origins {
+            let text = o.get_ref();
+            let authority = text.strip_prefix("http://").or_else(|| text.strip_prefix("https://"));
+            let authority = authority.map(|a| a.strip_suffix('/').unwrap_or(a));
+            if !authority.is_some_and(|a| !a.is_empty() && !a.contains(['/', '?', '#', '@', ' '])) {
+                self.err(
+                    o,
+                    "station.origins".into(),
+                    format!(
+                        "station: origin {text:?} must be scheme://host[:port], like http://station.lab:8080"
+                    ),
+                );
+            }
+        }
+        let program_check_time = match &s.program_check_time {
+            None => DEFAULT_PROGRAM_CHECK_TIME,
+            Some(t) => {
+                let v = *t.get_ref();
+                if v.is_finite() && v > 0.0 && v <= 600.0 {
+                    Duration::from_secs_f64(v)
+                } else {
+                    self.err(
+                        t,
+                        "station.program_check_time".into(),
+                        format!("station: program_check_time ({v}) must be in (0, 600] seconds"),
+                    );
+                    DEFAULT_PROGRAM_CHECK_TIME
+                }
+            }
+        };
         Station {
             name: s.name.get_ref().clone(),
             listen: listen.unwrap_or(fallback),
             data_dir: self.path(s.data_dir.as_ref().map_or("data", |d| d.get_ref().as_str())),
+            origins: s.origins.iter().map(|o| o.get_ref().clone()).collect(),
+            program_check_time,
         }
     }
 
@@ -399,11 +431,13 @@ impl<'a> Validator<'a> {
         let max_acceleration = self.positive(&a.max_acceleration, "axis", &name, "max_acceleration", i);
         let machine_ok =
             min.is_finite() && max.is_finite() && min < max && max_velocity > 0.0 && max_acceleration > 0.0;
+        // No `student` table: students cannot move the axis (fail closed). Student limits are
+        // checked against valid machine limits only (else the machine limits' own error says
+        // what to fix first).
         let student = match &a.student {
-            // Student limits are checked against valid machine limits only (else the
-            // machine limits' own error says what to fix first).
-            Some(s) if machine_ok => self.student(i, &name, s, limits, max_velocity, max_acceleration),
-            _ => StudentLimits { limits, max_velocity, max_acceleration },
+            Some(s) if machine_ok => Some(self.student(i, &name, s, limits, max_velocity, max_acceleration)),
+            Some(_) => Some(StudentLimits { limits, max_velocity, max_acceleration }),
+            None => None,
         };
         AxisConfig {
             name,

@@ -239,7 +239,10 @@ impl Scheduler {
             let a = Arc::clone(&alarms);
             let handle = std::thread::Builder::new()
                 .name(format!("motus-{name}"))
-                .spawn(move || thread::run(class, &s, a.as_ref()))
+                .spawn(move || {
+                    motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
+                    thread::run(class, &s, a.as_ref())
+                })
                 .map_err(|e| SchedulerError::Spawn { class: name, reason: e.to_string() })?;
             sched.classes.push(ClassHandle { shared, thread: Some(handle) });
         }

@@ -1,17 +1,24 @@
-//! Test harness: a real server on 127.0.0.1:0 over the FakeBackend and a lab MemoryStore,
-//! with an injectable clock, and a small HTTP client that keeps the session cookie and the
-//! CSRF token.
+//! The web API on the real station machine over a small simulated cell
+//! (`api-test-cell.toml`: `sim-axis` devices only, so it starts at once): an [`Env`] with an
+//! injectable clock, a lab `MemoryStore` with cheap hashes and the users admin, student,
+//! student2 and viewer, and an async HTTP client that keeps the session cookie and the CSRF
+//! token.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, dead_code)]
 
 use std::sync::Arc;
 use std::time::Duration;
 
-use motus_lab::{HashParams, Lab, LabConfig, MemoryStore, MotionLimits, Role, Store, UnixMs};
-use motus_station_web::{start, Clock, FakeBackend, OffsetClock, WebConfig, WebHandle};
+use motus_lab::{HashParams, Lab, LabConfig, MemoryStore, Role, Store, UnixMs};
+use motus_station_machine::{StationMachine, StationOptions};
+use motus_station_web::{
+    start, AxisAction, Caller, Clock, MachineBackend, OffsetClock, WebConfig, WebHandle,
+};
 use reqwest::{Method, StatusCode};
 use serde_json::Value;
 
-pub const STATION: &str = "st1";
+/// The small cell (x, y, z: a gantry with student tables; w: no student table).
+pub const API_TEST_CELL: &str = include_str!("api-test-cell.toml");
+pub const STATION: &str = "Motus API test cell";
 pub const ADMIN_PW: &str = "admin-password-1";
 pub const STUDENT_PW: &str = "student-password-1";
 pub const VIEWER_PW: &str = "viewer-password-1";
@@ -19,8 +26,17 @@ pub const VIEWER_PW: &str = "viewer-password-1";
 pub struct Env {
     pub handle: WebHandle,
     pub clock: Arc<OffsetClock>,
-    pub backend: Arc<FakeBackend>,
+    pub backend: Arc<StationMachine>,
     pub lab: Arc<Lab>,
+    pub dir: tempfile::TempDir,
+}
+
+/// Writes the small cell into `dir`; its path.
+pub fn write_api_test_cell(dir: &std::path::Path) -> std::path::PathBuf {
+    std::fs::create_dir_all(dir.join("data")).unwrap();
+    let path = dir.join("api-test-cell.toml");
+    std::fs::write(&path, API_TEST_CELL).unwrap();
+    path
 }
 
 impl Env {
@@ -29,11 +45,26 @@ impl Env {
     }
 
     pub fn with(tweak: impl FnOnce(&mut LabConfig)) -> Env {
-        let mut cfg = LabConfig::default();
-        cfg.sessions.cookie.secure = false;
+        Self::with_web(tweak, |_| {})
+    }
+
+    /// [`Env::with`], and `web` adjusts the server's settings.
+    pub fn with_web(tweak: impl FnOnce(&mut LabConfig), web: impl FnOnce(&mut WebConfig)) -> Env {
+        Self::with_options(tweak, web, |_| {})
+    }
+
+    /// [`Env::with_web`], and `station` adjusts the machine's options.
+    pub fn with_options(
+        tweak: impl FnOnce(&mut LabConfig),
+        web: impl FnOnce(&mut WebConfig),
+        station: impl FnOnce(&mut StationOptions),
+    ) -> Env {
+        let dir = tempfile::tempdir().unwrap();
+        let cell_file = write_api_test_cell(dir.path());
+        let cell = motus_station::config::load(&cell_file).unwrap_or_else(|e| panic!("{e}"));
+        let mut cfg = motus_station_machine::lab_config(&cell, false);
         // Cheap hashes: the tests log in often (the cost is not under test here).
         cfg.password.hash = HashParams { memory_kib: 64, iterations: 1, parallelism: 1 };
-        cfg.student_limits.default = Some(MotionLimits { max_speed: 1.0, max_acceleration: 6.0 });
         tweak(&mut cfg);
         let store: Arc<dyn Store> = Arc::new(MemoryStore::new());
         let lab = Arc::new(Lab::new(store, cfg));
@@ -47,23 +78,30 @@ impl Env {
         ] {
             lab.users().add(n, pw, r, now).unwrap();
         }
-        let backend = Arc::new(FakeBackend::new());
-        let config = WebConfig {
+        let sink = motus_station_machine::alarms::LabAlarmSink::start(Arc::clone(&lab)).unwrap();
+        let mut options = StationOptions { alarm_sink: Some(sink), ..StationOptions::default() };
+        station(&mut options);
+        let backend =
+            Arc::new(StationMachine::start_file(&cell_file, options).unwrap_or_else(|e| panic!("{e}")));
+        home_all(&backend);
+        let mut config = WebConfig {
             listen: "127.0.0.1:0".parse().unwrap(),
             station: STATION.into(),
             ws_rate_hz: 20.0,
             cleanup_interval: Duration::from_millis(100),
             clock: Arc::clone(&clock) as Arc<dyn Clock>,
+            ..WebConfig::default()
         };
+        web(&mut config);
         let handle = start(config, Arc::clone(&backend) as _, Arc::clone(&lab)).unwrap();
-        Env { handle, clock, backend, lab }
+        Env { handle, clock, backend, lab, dir }
     }
 
-    pub fn client(&self) -> Client {
-        Client { http: reqwest::Client::new(), base: self.handle.url(), cookie: None, csrf: None }
+    pub fn client(&self) -> WebClient {
+        WebClient { http: reqwest::Client::new(), base: self.handle.url(), cookie: None, csrf: None }
     }
 
-    pub async fn login(&self, user: &str, pw: &str) -> Client {
+    pub async fn login(&self, user: &str, pw: &str) -> WebClient {
         let mut c = self.client();
         let (st, body) = c.login(user, pw).await;
         assert_eq!(st, StatusCode::OK, "{body}");
@@ -93,14 +131,39 @@ impl Env {
     }
 }
 
-pub struct Client {
+/// Homes every axis of the cell (as the console would at start-up: the simulated axes start
+/// at 0, not homed) and waits until each is homed and still (up to 30 s).
+pub fn home_all(m: &StationMachine) {
+    let console = Caller::new("console", Role::Admin);
+    let end = std::time::Instant::now() + Duration::from_secs(30);
+    for a in m.axes() {
+        loop {
+            match m.command(&console, &a.id, AxisAction::Home) {
+                Ok(()) => break,
+                Err(e) => {
+                    assert!(std::time::Instant::now() < end, "home {}: {e}", a.id);
+                    std::thread::sleep(Duration::from_millis(50));
+                }
+            }
+        }
+    }
+    loop {
+        if m.axes().iter().all(|a| a.homed && !a.moving) {
+            return;
+        }
+        assert!(std::time::Instant::now() < end, "not homed: {:?}", m.axes());
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+pub struct WebClient {
     pub http: reqwest::Client,
     pub base: String,
     pub cookie: Option<String>,
     pub csrf: Option<String>,
 }
 
-impl Client {
+impl WebClient {
     pub async fn login(&mut self, user: &str, pw: &str) -> (StatusCode, Value) {
         let r = self
             .http
@@ -164,6 +227,10 @@ impl Client {
         let (st, axes) = self.get("/api/axes").await;
         assert_eq!(st, StatusCode::OK);
         axes.as_array().unwrap().iter().find(|a| a["id"] == id).unwrap().clone()
+    }
+
+    pub async fn position(&self, id: &str) -> f64 {
+        self.axis(id).await["position"].as_f64().unwrap()
     }
 
     /// Books `[now, now + 30 min)` for the logged-in user.

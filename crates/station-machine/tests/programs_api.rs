@@ -1,0 +1,385 @@
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+//! G-code programs on the real station (demo cell): a check runs off the web runtime within
+//! its budget while the station stays responsive, the pool refuses checks beyond its
+//! capacity (503 at once); a program's path is checked against the machine travel for
+//! everyone and against the student limits for students, before it runs (refusals audited
+//! with the program's demands, nothing moves); students see, check and run only their own
+//! and published programs, viewers neither check nor run.
+
+mod common;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use common::Client;
+use serde_json::{json, Value};
+
+/// One demo cell at a time: three at once overload a 2-core host (device time-outs).
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+fn now_ms() -> i64 {
+    i64::try_from(std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_millis())
+        .unwrap()
+}
+
+fn audit(admin: &Client, user: &str, action: &str) -> Vec<Value> {
+    let v = admin.ok("GET", &format!("/api/audit?user={user}&action_prefix={action}&limit=500"), Value::Null);
+    v.as_array().unwrap().iter().map(|r| r["entry"].clone()).collect()
+}
+
+fn upload(c: &Client, name: &str, text: &str) -> (String, Value) {
+    let r = c.ok("POST", "/api/programs", json!({ "name": name, "text": text }));
+    (r["program"]["id"].as_str().unwrap().to_owned(), r["check"].clone())
+}
+
+fn book(c: &Client) -> i64 {
+    let now = now_ms();
+    let r = c.ok("POST", "/api/reservations", json!({ "start": now - 1000, "end": now + 30 * 60 * 1000 }));
+    r["id"].as_i64().unwrap()
+}
+
+fn add_user(admin: &Client, name: &str, role: &str) -> Client {
+    let password = format!("{name}-password-1");
+    admin.ok("POST", "/api/users", json!({ "name": name, "password": password, "role": role }));
+    Client::login(&admin.addr, name, &password)
+}
+
+fn wait_program(c: &Client, state: &str) -> Value {
+    let t0 = Instant::now();
+    loop {
+        let s = c.ok("GET", "/api/programs/status", Value::Null);
+        if s["state"] == state {
+            return s;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(60), "program not {state}: {s}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn percentile(sorted: &[Duration], p: f64) -> Duration {
+    let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
+    sorted[i.min(sorted.len() - 1)]
+}
+
+/// An endless loop of heavy expressions: it would run for hours.
+const ENDLESS: &str = "G21 G90\n#1 = 0\no100 while [1]\n\
+#1 = [[#1 + 1] MOD 1000]\n\
+#2 = [SIN[#1] * COS[#1] + SQRT[ABS[#1]] + EXP[[#1 MOD 10] / 10] + ATAN[#1]/[1 + #1]]\n\
+#3 = [[#2 * #2 + LN[1 + ABS[#2]]] / [1 + SQRT[1 + #1 * #1]] + [#1 MOD 7] ** 2]\n\
+#4 = [[#3 + #2] * [#3 - #2] / [1 + ABS[#3 * #2]] + FIX[#1 / 3] + FUP[#1 / 7]]\n\
+o100 endwhile\nM2\n";
+
+/// Acceptance point 3 of issue 18.
+#[test]
+fn a_check_that_would_take_hours_stops_at_its_budget_and_the_station_stays_responsive() {
+    let _serial = serial();
+    let st = common::station();
+    let admin = Client::login(&st.addr, "admin", "admin-password-1");
+    let student = Client::login(&st.addr, "student", "student-password-1");
+    book(&student);
+    let capacity = motus_station_machine::StationOptions::default().program_checks.capacity();
+
+    // Latency of the session and E-stop routes, from their own thread, over the checks.
+    let done = Arc::new(AtomicBool::new(false));
+    let probe = {
+        let (done, addr) = (Arc::clone(&done), st.addr.clone());
+        let (cookie, csrf) = (admin.cookie.clone(), admin.csrf.clone());
+        std::thread::spawn(move || {
+            let probe = Client { addr, cookie, csrf };
+            let (mut session, mut estop) = (Vec::new(), Vec::new());
+            while !done.load(Ordering::Relaxed) {
+                let t = Instant::now();
+                let (s, _) = probe.call("GET", "/api/session", Value::Null);
+                session.push(t.elapsed());
+                assert_eq!(s, 200);
+                let t = Instant::now();
+                let (s, _) = probe.call("POST", "/api/estop", Value::Null);
+                estop.push(t.elapsed());
+                assert_eq!(s, 200);
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            (session, estop)
+        })
+    };
+
+    // Fill the pool: one endless check per worker and queue place, each in its own upload.
+    let started = Instant::now();
+    let mut uploads = Vec::new();
+    for k in 0..capacity {
+        let c = Client { addr: st.addr.clone(), cookie: student.cookie.clone(), csrf: student.csrf.clone() };
+        uploads.push(std::thread::spawn(move || {
+            let t = Instant::now();
+            let r = upload(&c, &format!("endless-{k}.ngc"), ENDLESS);
+            (r, t.elapsed())
+        }));
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    // Beyond the capacity: the upload stands, its check is refused at once; so is an
+    // explicit check (503).
+    let t = Instant::now();
+    let (extra, check) = upload(&student, "one-more.ngc", ENDLESS);
+    assert!(check["errors"][0]["message"].as_str().unwrap().starts_with("not checked: busy"), "{check}");
+    let (status, body) = student.call("POST", &format!("/api/programs/{extra}/check"), Value::Null);
+    let refused_in = t.elapsed();
+    assert_eq!(status, 503, "{body}");
+    assert_eq!(body["error"], "busy", "{body}");
+    assert!(refused_in < Duration::from_secs(2), "refused at once, not after {refused_in:?}");
+
+    let results: Vec<_> = uploads.into_iter().map(|u| u.join().unwrap()).collect();
+    done.store(true, Ordering::Relaxed);
+    let (mut session, mut estop) = probe.join().unwrap();
+    let checks_took = started.elapsed();
+    // The first check: a worker took it at once and stopped it at the budget (3 s by
+    // default), with the clear error, at a line of the loop.
+    let ((first_id, first), first_took) = &results[0];
+    let e = &first["errors"][0];
+    let message = e["message"].as_str().unwrap();
+    eprintln!("first check: {first_took:?}: {}:{}: {message}", e["line"], e["col"]);
+    assert!(message.starts_with("check stopped after 3."), "{message}");
+    assert!(message.contains("the program is too long or does not end"), "{message}");
+    assert!((3..=8).contains(&e["line"].as_u64().unwrap()), "{e}");
+    assert!(*first_took < Duration::from_secs(10), "{first_took:?}");
+    for ((_, check), took) in &results[1..] {
+        let m = check["errors"][0]["message"].as_str().unwrap();
+        assert!(
+            m.starts_with("check stopped after 3.") || m.starts_with("not checked: busy"),
+            "{m} ({took:?})"
+        );
+    }
+    // The result is kept: checking again answers at once, with the same error.
+    let t = Instant::now();
+    let again = student.ok("POST", &format!("/api/programs/{first_id}/check"), Value::Null);
+    assert!(t.elapsed() < Duration::from_secs(2), "{:?}", t.elapsed());
+    assert_eq!(again["errors"][0]["message"], e["message"]);
+    // Every check is audited with its outcome; so is the refused one.
+    let checks = audit(&admin, "student", "command.check_program");
+    assert!(
+        checks.iter().any(|c| c["target"].as_str().unwrap().contains("endless-0.ngc")
+            && c["outcome"]["result"] == "error"
+            && c["outcome"]["message"].as_str().unwrap().contains("check stopped after")),
+        "{checks:?}"
+    );
+    assert!(
+        checks.iter().any(|c| c["target"].as_str().unwrap().contains(&extra)
+            && c["outcome"]["message"].as_str().unwrap().contains("503 busy")),
+        "{checks:?}"
+    );
+
+    // The station answered all along.
+    for (name, v) in [("GET /api/session", &mut session), ("POST /api/estop", &mut estop)] {
+        v.sort();
+        let (p50, p99, max) = (percentile(v, 0.5), percentile(v, 0.99), *v.last().unwrap());
+        eprintln!(
+            "{name} during {checks_took:?} of checks: {} requests, p50 {p50:?}, p99 {p99:?}, max {max:?}",
+            v.len()
+        );
+        assert!(v.len() >= 10, "{name}: only {} requests in {checks_took:?}", v.len());
+        assert!(max < Duration::from_secs(2), "{name}: {max:?}");
+    }
+    admin.ok("POST", "/api/reset", Value::Null);
+}
+
+#[test]
+fn a_program_cannot_take_a_student_beyond_the_limits_and_nothing_moves() {
+    let _serial = serial();
+    let st = common::station();
+    let admin = Client::login(&st.addr, "admin", "admin-password-1");
+    let student = Client::login(&st.addr, "student", "student-password-1");
+    book(&student);
+    let x0 = student.axis("x")["position"].as_f64().unwrap();
+
+    // X 500 mm = 0.5 m is inside the student range of x ([0, 0.55] m), but F1000000 (16.7 m/s)
+    // is far beyond its 0.08 m/s: refused by the lab before it runs.
+    let (fast, check) = upload(&student, "fast.ngc", "G21 G90\nG1 X500 F1000000\nM2\n");
+    assert_eq!(check["errors"], json!([]), "{check}");
+    let x = check["demands"].as_array().unwrap().iter().find(|d| d[0] == "x").unwrap()[1].clone();
+    assert_eq!(x["range"], json!([0.5, 0.5]), "{x}");
+    assert!((x["speed"].as_f64().unwrap() - 1_000_000.0 / 60_000.0).abs() < 1e-9, "{x}");
+    let (status, body) = student.call("POST", &format!("/api/programs/{fast}/run"), Value::Null);
+    assert_eq!(status, 403, "{body}");
+    assert_eq!(body["detail"]["reason"]["reason"], "motion_limit", "{body}");
+    // 580 mm is within the machine travel (0.6 m) but beyond the student range: refused with
+    // the position reason.
+    let (far, _) = upload(&student, "far.ngc", "G21 G90\nG0 X10\nG1 X580 F600\nM2\n");
+    let (status, body) = student.call("POST", &format!("/api/programs/{far}/run"), Value::Null);
+    assert_eq!(status, 403, "{body}");
+    assert_eq!(body["detail"]["reason"]["reason"], "position_limit", "{body}");
+    let message = body["detail"]["message"].as_str().unwrap();
+    assert!(message.contains("x:") && message.contains("student range [0, 0.55]"), "{message}");
+    // Beyond the machine travel: refused for everyone, admin too, with the axis, the position
+    // and the line, before it runs.
+    let beyond = "G21 G90\nG1 X100 F600\nG1 X700\nM2\n";
+    let (out, check) = upload(&student, "out.ngc", beyond);
+    assert_eq!(check["errors"][0]["line"], 3, "{check}");
+    let m = check["errors"][0]["message"].as_str().unwrap();
+    assert!(m.contains("axis x would reach 0.7 m, outside the machine travel [0, 0.6] m"), "{m}");
+    let (status, body) = student.call("POST", &format!("/api/programs/{out}/run"), Value::Null);
+    assert_eq!(status, 400, "{body}");
+    assert!(body["detail"]["message"].as_str().unwrap().starts_with("3:1: axis x would reach 0.7"), "{body}");
+    let (admins, _) = upload(&admin, "admin-out.ngc", beyond);
+    let (status, body) = admin.call("POST", &format!("/api/programs/{admins}/run"), Value::Null);
+    assert_eq!(status, 400, "{body}");
+    // In inches: X 30 in = 0.762 m, beyond the machine too.
+    let (inch, check) = upload(&admin, "inch.ngc", "G20 G90\nG1 X30 F10\nM2\n");
+    assert!(check["errors"][0]["message"].as_str().unwrap().contains("would reach 0.762"), "{check}");
+    assert_eq!(admin.call("POST", &format!("/api/programs/{inch}/run"), Value::Null).0, 400);
+
+    // Nothing moved, nothing ran.
+    let s = student.ok("GET", "/api/programs/status", Value::Null);
+    assert_eq!(s["state"], "idle", "{s}");
+    let scene = student.ok("GET", "/api/scene", Value::Null);
+    assert_eq!(scene["gantry"][0], json!([0.0, 0.0, 0.0]), "{scene}");
+    assert_eq!(student.axis("x")["position"].as_f64().unwrap(), x0);
+    // Each refusal is audited with the program and its demands or its error.
+    let runs = audit(&admin, "student", "command.run_program");
+    let denied = |id: &str, text: &str| {
+        runs.iter().any(|r| {
+            let target = r["target"].as_str().unwrap();
+            target.contains(&format!("({id})"))
+                && r["outcome"]["result"] == "denied"
+                && r["outcome"]["message"].as_str().unwrap().contains(text)
+        })
+    };
+    assert!(denied(&fast, "exceeds the student limit"), "{runs:?}");
+    assert!(denied(&far, "student range [0, 0.55]"), "{runs:?}");
+    assert!(
+        runs.iter()
+            .any(|r| r["target"].as_str().unwrap().contains(&format!("({fast}) demands: x [0.5, 0.5] v "))),
+        "{runs:?}"
+    );
+    assert!(
+        runs.iter().any(|r| r["target"].as_str().unwrap().contains(&format!("({out})"))
+            && r["outcome"]["result"] == "error"
+            && r["outcome"]["message"].as_str().unwrap().contains("machine travel")),
+        "{runs:?}"
+    );
+    let admin_runs = audit(&admin, "admin", "command.run_program");
+    assert!(
+        admin_runs.iter().any(|r| r["outcome"]["message"].as_str().unwrap_or("").contains("0.7 m")),
+        "{admin_runs:?}"
+    );
+
+    // A program inside the student limits runs, and moves the (simulated) gantry.
+    let (ok, check) = upload(&student, "inside.ngc", "G21 G90\nG1 X50 Y20 F1200\nG1 X0 Y0\nM2\n");
+    assert_eq!(check["errors"], json!([]), "{check}");
+    student.ok("POST", &format!("/api/programs/{ok}/run"), Value::Null);
+    let t0 = Instant::now();
+    let mut moved = false;
+    loop {
+        let s = student.ok("GET", "/api/programs/status", Value::Null);
+        let g = student.ok("GET", "/api/scene", Value::Null)["gantry"][0][0].as_f64().unwrap();
+        moved |= g > 0.0;
+        if s["state"] == "done" {
+            break;
+        }
+        assert!(s["state"] == "running", "{s}");
+        assert!(t0.elapsed() < Duration::from_secs(30), "{s}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(moved, "the run moved the gantry");
+    assert!(audit(&admin, "student", "command.run_program").iter().any(|r| r["target"]
+        .as_str()
+        .unwrap()
+        .contains(&format!("({ok})"))
+        && r["outcome"]["result"] == "ok"));
+}
+
+#[test]
+fn students_see_check_and_run_their_own_and_published_programs_viewers_neither() {
+    let _serial = serial();
+    let st = common::station();
+    let admin = Client::login(&st.addr, "admin", "admin-password-1");
+    let student = Client::login(&st.addr, "student", "student-password-1");
+    let student2 = add_user(&admin, "student2", "student");
+    let viewer = add_user(&admin, "viewer", "viewer");
+    let names = |c: &Client| -> Vec<String> {
+        let v = c.ok("GET", "/api/programs", Value::Null);
+        v.as_array().unwrap().iter().map(|p| p["name"].as_str().unwrap().to_owned()).collect()
+    };
+    let inside = "G21 G90\nG1 X20 Y10 F1200\nG1 X0 Y0\nM2\n";
+    let (public, _) = upload(&admin, "public.ngc", inside);
+    let (secret, _) = upload(&admin, "secret.ngc", inside);
+    // Only an admin publishes (audited).
+    let reservation = book(&student);
+    let (mine, _) = upload(&student, "mine.ngc", inside);
+    assert_eq!(student.call("POST", &format!("/api/programs/{mine}/publish"), Value::Null).0, 403);
+    let p = admin.ok("POST", &format!("/api/programs/{public}/publish"), Value::Null);
+    assert_eq!(p["published"], true);
+    assert!(audit(&admin, "admin", "publish_program").iter().any(|e| e["outcome"]["result"] == "ok"));
+    assert!(audit(&admin, "student", "publish_program").iter().any(|e| e["outcome"]["result"] == "denied"));
+
+    let mut all = names(&admin);
+    all.sort();
+    assert_eq!(all, ["mine.ngc", "public.ngc", "secret.ngc"]);
+    let mut own = names(&student);
+    own.sort();
+    assert_eq!(own, ["mine.ngc", "public.ngc"]);
+    assert_eq!(names(&student2), ["public.ngc"]);
+    assert_eq!(names(&viewer), ["public.ngc"]);
+
+    // Someone else's program: not found (the name does not leak), audited.
+    for id in [&mine, &secret] {
+        for what in ["check", "run"] {
+            let (status, body) = student2.call("POST", &format!("/api/programs/{id}/{what}"), Value::Null);
+            assert_eq!(status, 404, "student2 {what} {id}: {body}");
+        }
+    }
+    let (status, _) = student.call("POST", &format!("/api/programs/{secret}/check"), Value::Null);
+    assert_eq!(status, 404);
+    assert!(audit(&admin, "student2", "command.check_program")
+        .iter()
+        .any(|e| e["outcome"]["result"] == "denied"));
+    assert!(audit(&admin, "student2", "command.run_program")
+        .iter()
+        .any(|e| e["outcome"]["result"] == "denied"));
+    // A viewer neither checks nor runs, published or not.
+    for id in [&public, &mine] {
+        for what in ["check", "run"] {
+            let (status, body) = viewer.call("POST", &format!("/api/programs/{id}/{what}"), Value::Null);
+            assert_eq!(status, 403, "viewer {what} {id}: {body}");
+        }
+    }
+    assert!(audit(&admin, "viewer", "command.check_program")
+        .iter()
+        .any(|e| e["outcome"]["result"] == "denied"));
+
+    // The slot holder runs their own program and the published one.
+    for id in [&mine, &public] {
+        assert_eq!(
+            student.ok("POST", &format!("/api/programs/{id}/check"), Value::Null)["errors"],
+            json!([])
+        );
+        student.ok("POST", &format!("/api/programs/{id}/run"), Value::Null);
+        wait_program(&student, "done");
+    }
+
+    // The slot ends: the student's programs go, the published one stays; student2 books the
+    // station and runs it.
+    admin.ok("DELETE", &format!("/api/reservations/{reservation}"), Value::Null);
+    let t0 = Instant::now();
+    while names(&admin).contains(&"mine.ngc".to_owned()) {
+        assert!(t0.elapsed() < Duration::from_secs(20), "slot cleanup");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert_eq!(names(&admin).len(), 2);
+    std::thread::sleep(Duration::from_millis(50));
+    let now = now_ms();
+    student2.ok("POST", "/api/reservations", json!({ "start": now, "end": now + 30 * 60 * 1000 }));
+    let t0 = Instant::now();
+    loop {
+        let (status, body) = student2.call("POST", &format!("/api/programs/{public}/run"), Value::Null);
+        if status == 200 {
+            break;
+        }
+        // The end-of-slot cleanup may still be homing the machine.
+        assert!(t0.elapsed() < Duration::from_secs(30), "{status} {body}");
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    wait_program(&student2, "done");
+    assert!(audit(&admin, "student2", "command.run_program").iter().any(|e| e["outcome"]["result"] == "ok"));
+}
