@@ -519,16 +519,13 @@ pub trait MachineBackend: Send + Sync {
     /// layer lets only administrators call it.
     ///
     /// # Errors
-    /// [`BackendError::NotFound`]; [`BackendError::State`] for a backend without publishing.
+    /// [`BackendError::NotFound`], [`BackendError::Forbidden`] for a non-administrator.
     fn publish_program(
         &self,
         caller: &Caller,
         id: &str,
         published: bool,
-    ) -> Result<ProgramInfo, BackendError> {
-        let _ = (caller, published);
-        Err(BackendError::State(format!("program {id}: this backend cannot publish programs")))
-    }
+    ) -> Result<ProgramInfo, BackendError>;
     /// Feed hold.
     ///
     /// # Errors
