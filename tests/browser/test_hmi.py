@@ -713,18 +713,11 @@ STEPS = [
     ("no script errors", step_no_script_errors),
 ]
 FATAL = {"log in as admin; group panels from /api/groups"}  # nothing after it can run without it
-# Controls whose backend is not there yet on the real station (issue 18 stays open until each
-# works). They still run: a failure is reported as a known gap (counted as skipped, with its
-# reason), a pass says the gap is closed and the entry must go.
-KNOWN_GAPS = {"robot map go-to": "the station has no robot go-to yet (409 from the backend)"}
 # For working on one control: MOTUS_HMI_ONLY=home,jog runs the two login steps and the steps
 # whose names contain one of the words.
 if os.environ.get("MOTUS_HMI_ONLY"):
     _only = os.environ["MOTUS_HMI_ONLY"].split(",")
     STEPS = STEPS[:2] + [s for s in STEPS[2:] if any(w in s[0] for w in _only)]
-
-
-GAPS = []  # known gaps that failed as expected (see KNOWN_GAPS)
 
 
 def run():
@@ -737,7 +730,6 @@ def run():
     print(f"screenshots in {SHOTS}")
     STATION = Station()
     passed, failed = 0, []
-    global GAPS
     try:
         api = STATION.wait_ready()
         with sync_playwright() as p:
@@ -755,13 +747,7 @@ def run():
                     fn(t)
                     passed += 1
                     print(f"ok   {name} ({time.monotonic() - t0:.1f} s)")
-                    if name in KNOWN_GAPS:
-                        print(f"NOTE {name} works now: remove it from KNOWN_GAPS")
                 except Exception as e:  # noqa: BLE001 - report, go on with the next control
-                    if name in KNOWN_GAPS:
-                        GAPS.append(name)
-                        print(f"GAP  {name}: {KNOWN_GAPS[name]} ({str(e).splitlines()[0] if str(e) else e!r})")
-                        continue
                     failed.append(name)
                     print(f"FAIL {name} ({time.monotonic() - t0:.1f} s): {str(e).splitlines()[0] if str(e) else e!r}")
                     traceback.print_exc()
@@ -796,9 +782,7 @@ def main():
         passed, failed = 0, [n for n, _ in STEPS]
     if failed:
         print("failed: " + "; ".join(failed))
-    if GAPS:
-        print("known gaps (skipped): " + "; ".join(f"{g}: {KNOWN_GAPS[g]}" for g in GAPS))
-    print(f"{passed} passed, {len(failed)} failed" + (f", {len(GAPS)} skipped" if GAPS else ""))
+    print(f"{passed} passed, {len(failed)} failed")
     sys.stdout.flush()
     if STATION is not None:
         STATION.stop()

@@ -128,6 +128,96 @@ impl StationMachine {
         Ok(())
     }
 
+    /// What every motion command needs besides its numbers: no E-stop, the axis's device
+    /// connected, the juggler's supervisor not holding its axes.
+    fn motion_allowed(&self, view: &AxisView) -> Result<(), BackendError> {
+        if self.shared.estop.load(Ordering::Relaxed) {
+            return Err(BackendError::EStopped);
+        }
+        if let Some(reason) = self.shared.faults.fault_of(&view.id) {
+            return Err(BackendError::State(format!(
+                "axis {}: {reason}; the station is reconnecting it, motion is refused until it is back",
+                view.id
+            )));
+        }
+        if view.group.as_deref() == Some("juggler") {
+            if let Some(why) = self.juggler_blocks() {
+                return Err(BackendError::SafetyHold(why));
+            }
+        }
+        Ok(())
+    }
+
+    /// Takes the omni robot to `targets` = `[x, y]` or `[x, y, heading]` (metres, radians;
+    /// see [`crate::robot`]): three synchronised wheel moves from the station's pose
+    /// estimate. Every wheel move is checked (machine limits, a student's limits) before any
+    /// starts, so a refusal moves nothing.
+    fn robot_go_to(
+        &self,
+        caller: &Caller,
+        g: &motus_cell::CellGroup,
+        targets: &[f64],
+    ) -> Result<(), BackendError> {
+        let (x, y, heading) = match *targets {
+            [x, y] => (x, y, None),
+            [x, y, h] => (x, y, Some(h)),
+            _ => {
+                return Err(BackendError::invalid(
+                    "targets",
+                    format!("{} values: the robot takes [x, y] or [x, y, heading]", targets.len()),
+                ))
+            }
+        };
+        let estimate = self.shared.robot.as_ref().ok_or_else(|| {
+            BackendError::State(format!("group {}: the robot needs three wheel axes", g.name))
+        })?;
+        let travel = lock(estimate).travel_to(x, y, heading)?;
+        let views = g.axes.iter().map(|a| self.view(a)).collect::<Result<Vec<_>, _>>()?;
+        // The slowest wheel's speed and acceleration bound the move (a student's: within the
+        // student maxima).
+        let mut speed = f64::INFINITY;
+        let mut acceleration = f64::INFINITY;
+        for v in &views {
+            speed = speed.min(v.default_speed);
+            acceleration = acceleration.min(v.acceleration);
+            if restricted(caller) {
+                let s = self.student_limits(&v.id)?;
+                speed = speed.min(s.max_velocity);
+                acceleration = acceleration.min(s.max_acceleration);
+            }
+        }
+        // Relative wheel moves (a wheel is endless: it has no reference to home to); each is
+        // checked as the absolute move it amounts to.
+        let mut moves = Vec::new();
+        for ((v, t), sync) in
+            views.iter().zip(travel).zip(crate::robot::synchronised(travel, speed, acceleration))
+        {
+            let Some((speed, acceleration)) = sync else { continue };
+            let action = AxisAction::Move { target: v.position + t, speed, acceleration: Some(acceleration) };
+            action.validate(v)?;
+            self.check_student(caller, v, &action)?;
+            self.motion_allowed(v)?;
+            let profile =
+                MotionProfile { velocity: Some(speed), acceleration: Some(acceleration), deceleration: None };
+            moves.push((v, AxisCommand::MoveRelative { distance: t, profile }));
+        }
+        tracing::info!(user = %caller.user, group = %g.name, x, y, ?heading, ?travel, "robot go-to");
+        lock(estimate).target = Some([x, y]);
+        for (v, cmd) in moves {
+            if !v.enabled {
+                let _ = self.execute(&v.id, &AxisCommand::Enable);
+            }
+            if let Err(e) = self.execute(&v.id, &cmd) {
+                // One wheel refused: stop the others rather than drive a wrong path.
+                for v in &views {
+                    let _ = self.execute(&v.id, &AxisCommand::Stop);
+                }
+                return Err(e);
+            }
+        }
+        Ok(())
+    }
+
     /// A jog, as a lease renewed by repeated requests (see [`crate::jog`]).
     ///
     /// What the drive is commanded:
@@ -223,21 +313,8 @@ impl MachineBackend for StationMachine {
         let view = self.view(axis)?;
         action.validate(&view)?;
         self.check_student(caller, &view, &action)?;
-        let motion = !matches!(action, AxisAction::Stop);
-        if motion && self.shared.estop.load(Ordering::Relaxed) {
-            return Err(BackendError::EStopped);
-        }
-        if motion {
-            if let Some(reason) = self.shared.faults.fault_of(axis) {
-                return Err(BackendError::State(format!(
-                    "axis {axis}: {reason}; the station is reconnecting it, motion is refused until it is back"
-                )));
-            }
-        }
-        if motion && view.group.as_deref() == Some("juggler") {
-            if let Some(why) = self.juggler_blocks() {
-                return Err(BackendError::SafetyHold(why));
-            }
+        if !matches!(action, AxisAction::Stop) {
+            self.motion_allowed(&view)?;
         }
         tracing::info!(user = %caller.user, axis, ?action, "axis command");
         let profile = |speed: f64, acc: Option<f64>| MotionProfile {
@@ -313,7 +390,7 @@ impl MachineBackend for StationMachine {
         if let Some(j) = self.shared.juggler.as_ref() {
             j.stop_all();
         }
-        quick_stop_all(&self.shared);
+        self.quick_stoppers.stop_all(&self.shared);
     }
 
     fn reset(&self, caller: &Caller) -> Result<(), BackendError> {
@@ -522,12 +599,19 @@ impl MachineBackend for StationMachine {
         for g in &self.shared.groups {
             match &g.handle {
                 GroupHandle::Omni(o) => {
-                    if let Some(p) = o.true_pose() {
+                    // The simulated robot's true pose when the wheels are simulated (what a
+                    // camera over the floor shows), else the station's estimate.
+                    let estimate = self.shared.robot.as_ref().map(|e| {
+                        let e = lock(e);
+                        (e.pose(), e.target)
+                    });
+                    let pose = o.true_pose().or(estimate.map(|(p, _)| p));
+                    if let Some(p) = pose {
                         scene.robot = Some(RobotScene {
                             pose: [p.x, p.y, p.heading],
                             path: lock(&self.shared.robot_path).iter().copied().collect(),
-                            target: None,
-                            bounds: [-2.0, -2.0, 2.0, 2.0],
+                            target: estimate.and_then(|(_, t)| t),
+                            bounds: crate::robot::ROBOT_AREA,
                         });
                     }
                 }
@@ -612,10 +696,13 @@ impl MachineBackend for StationMachine {
                 j.select_program(pattern).map_err(BackendError::State)
             }
             GroupAction::GoTo { targets } => {
-                if matches!(g.handle, GroupHandle::Omni(_) | GroupHandle::Juggler(_)) {
+                if matches!(g.handle, GroupHandle::Juggler(_)) {
                     return Err(BackendError::State(format!(
-                        "group {group}: go-to is not available here (move its axes, or use `motus robot` for the robot)"
+                        "group {group}: the juggler has no go-to (run one of its programs)"
                     )));
+                }
+                if matches!(g.handle, GroupHandle::Omni(_)) {
+                    return self.robot_go_to(caller, g, &targets);
                 }
                 if targets.len() != g.axes.len() {
                     return Err(BackendError::invalid(
@@ -678,61 +765,6 @@ impl MachineBackend for StationMachine {
         for a in &self.shared.axes {
             if a.view.group.as_deref() != Some("juggler") {
                 let _ = lock(&a.axis).execute(&AxisCommand::Home);
-            }
-        }
-    }
-}
-
-/// How long an E-stop waits for the drives' quick-stop commands to be sent before it
-/// answers; a drive still busy on its bus gets its quick stop as soon as its line is free,
-/// and a failure is logged.
-const ESTOP_CONFIRM_WAIT: std::time::Duration = std::time::Duration::from_millis(250);
-
-/// Quick-stops every axis at once: one short-lived thread per axis (at device priority), so
-/// the slowest line does not delay the others (they used to be stopped one after another:
-/// E-stop answers took p99 ~300 ms on the demo cell). Waits up to [`ESTOP_CONFIRM_WAIT`].
-fn quick_stop_all(shared: &std::sync::Arc<crate::Shared>) {
-    let (tx, rx) = std::sync::mpsc::channel::<(usize, Option<String>)>();
-    let mut pending = 0usize;
-    for i in 0..shared.axes.len() {
-        let s = std::sync::Arc::clone(shared);
-        let tx = tx.clone();
-        let spawned = std::thread::Builder::new().name("motus-estop".into()).spawn(move || {
-            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
-            if let Some(a) = s.axes.get(i) {
-                let r = lock(&a.axis).execute(&AxisCommand::QuickStop);
-                let _ = tx.send((i, r.err().map(|e| e.to_string())));
-            }
-        });
-        match spawned {
-            Ok(_) => pending += 1,
-            Err(e) => {
-                // No thread to be had: stop it from here.
-                tracing::warn!("E-stop thread: {e}; quick-stopping inline");
-                if let Some(a) = shared.axes.get(i) {
-                    if let Err(e) = lock(&a.axis).execute(&AxisCommand::QuickStop) {
-                        tracing::warn!(axis = %a.view.id, "quick stop: {e}");
-                    }
-                }
-            }
-        }
-    }
-    drop(tx);
-    let deadline = std::time::Instant::now() + ESTOP_CONFIRM_WAIT;
-    while pending > 0 {
-        let left = deadline.saturating_duration_since(std::time::Instant::now());
-        match rx.recv_timeout(left) {
-            Ok((i, err)) => {
-                pending -= 1;
-                if let (Some(e), Some(a)) = (err, shared.axes.get(i)) {
-                    tracing::warn!(axis = %a.view.id, "quick stop: {e}");
-                }
-            }
-            Err(_) => {
-                tracing::warn!(
-                    "E-stop: {pending} axes still sending their quick stop after {ESTOP_CONFIRM_WAIT:?}"
-                );
-                break;
             }
         }
     }

@@ -22,6 +22,8 @@ pub mod demo;
 pub mod jog;
 mod poller;
 mod programs;
+mod quick_stop;
+mod robot;
 mod rules;
 mod stops;
 pub mod tasks;
@@ -189,6 +191,8 @@ pub(crate) struct Shared {
     /// The cyclic tasks' traces (full rate); the poller adds their latest values to its rows.
     pub(crate) recorder: std::sync::OnceLock<Arc<Mutex<motus_station::trace::Recorder>>>,
     pub(crate) robot_path: Mutex<VecDeque<[f64; 2]>>,
+    /// The omni group's pose estimate (wheel odometry), if the cell has one.
+    pub(crate) robot: Option<Mutex<robot::RobotEstimate>>,
     pub(crate) estop: AtomicBool,
     /// Who pressed the E-stop since the last reset.
     pub(crate) estop_owners: Mutex<stops::EStopOwners>,
@@ -205,12 +209,27 @@ pub struct StationMachine {
     pub(crate) shared: Arc<Shared>,
     pub(crate) programs: programs::Programs,
     pub(crate) camera_url: Option<String>,
+    /// The E-stop's quick-stop workers.
+    pub(crate) quick_stoppers: quick_stop::QuickStoppers,
     threads: Vec<JoinHandle<()>>,
     tasks: Option<tasks::Tasks>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// The pose estimate of the cell's omni group (its three wheel axes), if it has one.
+fn robot_estimate(cell: &Cell, groups: &[motus_cell::CellGroup]) -> Option<Mutex<robot::RobotEstimate>> {
+    let g = groups.iter().find(|g| matches!(g.handle, motus_cell::GroupHandle::Omni(_)))?;
+    let mut scale = [0.0; 3];
+    let mut speed = [0.0; 3];
+    for (i, name) in g.axes.iter().enumerate().take(3) {
+        let cfg = cell.axis(name)?;
+        *scale.get_mut(i)? = cfg.scale.si_per_unit();
+        *speed.get_mut(i)? = cfg.max_velocity;
+    }
+    (g.axes.len() == 3).then(|| Mutex::new(robot::RobotEstimate::new(scale, speed)))
 }
 
 impl StationMachine {
@@ -258,6 +277,7 @@ impl StationMachine {
         let faults = Arc::new(FaultTable::default());
         let alarms = Arc::new(MemoryAlarms::default());
         let groups = running.groups().to_vec();
+        let robot = robot_estimate(cell, &groups);
         let juggler = running.juggler();
         let handles = running.device_handles();
         let rules = cell
@@ -286,6 +306,7 @@ impl StationMachine {
             samples: Mutex::new(Samples::default()),
             recorder: std::sync::OnceLock::new(),
             robot_path: Mutex::new(VecDeque::new()),
+            robot,
             estop: AtomicBool::new(false),
             estop_owners: Mutex::new(stops::EStopOwners::default()),
             jogs: Mutex::new(jog::JogLeases::default()),
@@ -302,7 +323,7 @@ impl StationMachine {
         if let Some(t) = &tasks {
             let _ = shared.recorder.set(Arc::clone(&t.recorder));
         }
-        let mut threads = Vec::new();
+        let (quick_stoppers, mut threads) = quick_stop::QuickStoppers::start(&shared)?;
         {
             let s = Arc::clone(&shared);
             let poll = options.poll;
@@ -337,7 +358,7 @@ impl StationMachine {
             })?);
         }
         let programs = programs::Programs::start(cell, options.program_checks)?;
-        Ok(Self { shared, programs, camera_url: options.camera_url, threads, tasks })
+        Ok(Self { shared, programs, camera_url: options.camera_url, quick_stoppers, threads, tasks })
     }
 
     /// Runs `f` with the running cell (simulators: kill / restart for tests and demos).

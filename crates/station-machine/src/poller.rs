@@ -49,6 +49,7 @@ pub(crate) fn run(s: &Shared, period: Duration) {
             row.push(v.position);
             views.push(v);
         }
+        update_robot_estimate(s, &views);
         *s.views.write().unwrap_or_else(PoisonError::into_inner) = views;
         // The cyclic traces' latest values (their full rate is in the recorder: trace.csv).
         if let Some(rec) = s.recorder.get() {
@@ -85,4 +86,21 @@ pub(crate) fn run(s: &Shared, period: Duration) {
             next = now;
         }
     }
+}
+
+/// Feeds the omni group's wheel positions to its pose estimate.
+fn update_robot_estimate(s: &Shared, views: &[motus_station_web::AxisView]) {
+    let Some(estimate) = &s.robot else { return };
+    let Some(g) = s.groups.iter().find(|g| matches!(g.handle, motus_cell::GroupHandle::Omni(_))) else {
+        return;
+    };
+    let mut positions = [0.0; 3];
+    for (p, name) in positions.iter_mut().zip(&g.axes) {
+        match views.iter().find(|v| &v.id == name) {
+            // A wheel that cannot be read is not integrated as motion.
+            Some(v) if v.fault.is_none() => *p = v.position,
+            _ => return,
+        }
+    }
+    lock(estimate).update(positions, s.epoch.elapsed().as_secs_f64());
 }

@@ -66,6 +66,25 @@ fn percentile(sorted: &[Duration], p: f64) -> Duration {
     sorted[i.min(sorted.len() - 1)]
 }
 
+/// Counts the WebSocket's messages until `done` (a current-thread runtime of its own).
+fn ws_count(addr: &str, cookie: &str, done: &AtomicBool, frames: &std::sync::atomic::AtomicU64) {
+    use futures_util::StreamExt;
+    use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+    rt.block_on(async {
+        let mut req = format!("ws://{addr}/api/ws").into_client_request().unwrap();
+        req.headers_mut().insert("Cookie", cookie.parse().unwrap());
+        let (mut ws, _) = tokio_tungstenite::connect_async(req).await.unwrap();
+        while !done.load(Ordering::Relaxed) {
+            if let Ok(Some(m)) = tokio::time::timeout(Duration::from_millis(200), ws.next()).await {
+                if m.unwrap().is_text() {
+                    frames.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
+    });
+}
+
 /// An endless loop of heavy expressions: it would run for hours.
 const ENDLESS: &str = "G21 G90\n#1 = 0\no100 while [1]\n\
 #1 = [[#1 + 1] MOD 1000]\n\
@@ -107,8 +126,22 @@ fn a_check_that_would_take_hours_stops_at_its_budget_and_the_station_stays_respo
         })
     };
 
+    // The WebSocket's frames, counted by their own thread: a baseline before the checks,
+    // then the rate over the checks.
+    let ws_frames = Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let ws = {
+        let (done, frames, addr, cookie) =
+            (Arc::clone(&done), Arc::clone(&ws_frames), st.addr.clone(), admin.cookie.clone());
+        std::thread::spawn(move || ws_count(&addr, &cookie, &done, &frames))
+    };
+    let baseline_from = (Instant::now(), ws_frames.load(Ordering::Relaxed));
+    std::thread::sleep(Duration::from_secs(3));
+    let baseline = (ws_frames.load(Ordering::Relaxed) - baseline_from.1) as f64
+        / baseline_from.0.elapsed().as_secs_f64();
+
     // Fill the pool: one endless check per worker and queue place, each in its own upload.
     let started = Instant::now();
+    let frames_at_start = ws_frames.load(Ordering::Relaxed);
     let mut uploads = Vec::new();
     for k in 0..capacity {
         let c = Client { addr: st.addr.clone(), cookie: student.cookie.clone(), csrf: student.csrf.clone() };
@@ -131,9 +164,17 @@ fn a_check_that_would_take_hours_stops_at_its_budget_and_the_station_stays_respo
     assert!(refused_in < Duration::from_secs(2), "refused at once, not after {refused_in:?}");
 
     let results: Vec<_> = uploads.into_iter().map(|u| u.join().unwrap()).collect();
+    let checks_took = started.elapsed();
+    let during = (ws_frames.load(Ordering::Relaxed) - frames_at_start) as f64 / checks_took.as_secs_f64();
     done.store(true, Ordering::Relaxed);
     let (mut session, mut estop) = probe.join().unwrap();
-    let checks_took = started.elapsed();
+    ws.join().unwrap();
+    eprintln!("WebSocket: {baseline:.1} frames/s before the checks, {during:.1} frames/s during {checks_took:?} of checks");
+    // Liveness, not a timing threshold: the frames keep coming while the checks run.
+    assert!(
+        during >= baseline * 0.25 && during > 1.0,
+        "the WebSocket stalled: {during:.1} vs {baseline:.1} frames/s"
+    );
     // The first check: a worker took it at once and stopped it at the budget (3 s by
     // default), with the clear error, at a line of the loop.
     let ((first_id, first), first_took) = &results[0];
