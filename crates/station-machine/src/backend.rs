@@ -339,6 +339,11 @@ impl MachineBackend for StationMachine {
             AxisAction::Stop => AxisCommand::Stop,
         };
         if matches!(cmd, AxisCommand::MoveAbsolute { .. }) && !view.enabled {
+            // Every device refuses an absolute move without its position reference: refused
+            // here, before the drive is switched on, so the refusal leaves the drive off.
+            if !view.homed {
+                return Err(BackendError::State(format!("axis {axis} is not homed: run `home` first")));
+            }
             let _ = self.execute(axis, &AxisCommand::Enable);
         }
         self.execute(axis, &cmd)

@@ -157,7 +157,9 @@ impl Inner {
     }
 
     /// Runs `f` on a blocking thread and audits its result as `action` (the caller has
-    /// authorised it already).
+    /// authorised it already): `ok`, `denied` when the backend refuses this caller (403:
+    /// e.g. a student resetting an E-stop an administrator pressed, or homing an axis without
+    /// student limits; 404), `error` otherwise.
     ///
     /// # Errors
     /// The backend's error mapped to its status.
@@ -171,8 +173,14 @@ impl Inner {
         let result = tokio::task::spawn_blocking(move || f(caller))
             .await
             .map_err(|e| ApiError::internal(format!("backend task failed: {e}")))?;
-        let audit = result.as_ref().map(|_| ()).map_err(ToString::to_string);
-        if let Err(e) = self.lab.record(&actor, action, audit, self.now()) {
+        let outcome = match &result {
+            Ok(_) => AuditOutcome::Ok,
+            Err(e @ (BackendError::Forbidden(_) | BackendError::NotFound { .. })) => {
+                AuditOutcome::Denied(e.to_string())
+            }
+            Err(e) => AuditOutcome::Error(e.to_string()),
+        };
+        if let Err(e) = self.lab.audit().record(&actor, action, outcome, self.now()) {
             tracing::error!(error = %e, "audit write failed");
         }
         result.map_err(|e| ApiError::from(e).mark_audited())

@@ -59,6 +59,20 @@ impl Env {
         web: impl FnOnce(&mut WebConfig),
         station: impl FnOnce(&mut StationOptions),
     ) -> Env {
+        Self::build(tweak, web, station, true)
+    }
+
+    /// [`Env::new`], but the axes are left as the station starts them: not homed.
+    pub fn unhomed() -> Env {
+        Self::build(|_| {}, |_| {}, |_| {}, false)
+    }
+
+    fn build(
+        tweak: impl FnOnce(&mut LabConfig),
+        web: impl FnOnce(&mut WebConfig),
+        station: impl FnOnce(&mut StationOptions),
+        home: bool,
+    ) -> Env {
         let dir = tempfile::tempdir().unwrap();
         let cell_file = write_api_test_cell(dir.path());
         let cell = motus_station::config::load(&cell_file).unwrap_or_else(|e| panic!("{e}"));
@@ -83,7 +97,9 @@ impl Env {
         station(&mut options);
         let backend =
             Arc::new(StationMachine::start_file(&cell_file, options).unwrap_or_else(|e| panic!("{e}")));
-        home_all(&backend);
+        if home {
+            home_all(&backend);
+        }
         let mut config = WebConfig {
             listen: "127.0.0.1:0".parse().unwrap(),
             station: STATION.into(),
@@ -110,6 +126,41 @@ impl Env {
 
     pub fn now(&self) -> UnixMs {
         self.clock.now()
+    }
+
+    /// Audit entries of `user` whose action is exactly `action` (newest first) as (target,
+    /// outcome kind, message).
+    pub fn audit_of(&self, user: &str, action: &str) -> Vec<(String, String, String)> {
+        self.lab
+            .audit()
+            .query(&motus_lab::AuditQuery {
+                user: Some(user.into()),
+                action_prefix: Some(action.into()),
+                limit: 1000,
+                ..Default::default()
+            })
+            .unwrap()
+            .into_iter()
+            .filter(|r| r.entry.action == action)
+            .map(|r| {
+                (r.entry.target, r.entry.outcome.kind().to_string(), r.entry.outcome.message().to_string())
+            })
+            .collect()
+    }
+
+    /// A WebSocket upgrade of `/api/ws` with the session `cookie`, `Origin` and `Host`: the
+    /// refusal's status, or 101 when it is accepted.
+    pub async fn ws_upgrade(&self, cookie: &str, origin: &str, host: &str) -> StatusCode {
+        use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+        let mut req = format!("ws://{}/api/ws", self.handle.addr()).into_client_request().unwrap();
+        req.headers_mut().insert("Cookie", cookie.parse().unwrap());
+        req.headers_mut().insert("Origin", origin.parse().unwrap());
+        req.headers_mut().insert("Host", host.parse().unwrap());
+        match tokio_tungstenite::connect_async(req).await {
+            Ok(_) => StatusCode::SWITCHING_PROTOCOLS,
+            Err(tokio_tungstenite::tungstenite::Error::Http(r)) => r.status(),
+            Err(other) => panic!("{other}"),
+        }
     }
 
     /// Audit entries (newest first) as (user, action, outcome kind, message).
