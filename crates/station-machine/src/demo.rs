@@ -15,20 +15,16 @@ pub fn free_tcp_port() -> io::Result<u16> {
     Ok(std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
 }
 
-/// A base port with 16 free UDP ports after it (probed now).
-pub fn free_udp_block() -> io::Result<u16> {
-    for _ in 0..100 {
-        let base = std::net::UdpSocket::bind("127.0.0.1:0")?.local_addr()?.port();
-        if base < 60_000 && (0..16).all(|i| std::net::UdpSocket::bind(("127.0.0.1", base + i)).is_ok()) {
-            return Ok(base);
-        }
-    }
-    Err(io::Error::new(io::ErrorKind::AddrInUse, "no free block of 16 UDP ports on 127.0.0.1"))
+/// A name for a demo's in-process POWERLINK segment, unique in this process (tests start
+/// several demo cells in one process).
+fn unique_segment() -> String {
+    static NEXT: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    format!("{}-{}", std::process::id(), NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed))
 }
 
 /// Writes the demo cell into `dir` with the station listening on `listen`; returns the path
-/// of the cell file. The juggler's segment runs over UDP on a shared, non-real-time host, so
-/// its rules get a 1 ms cycle (the simulated segment follows it), a 9 ms lease and data up to
+/// of the cell file. The juggler's segment runs inside the process (`mem://`) on a shared,
+/// non-real-time host, so its rules get a 1 ms cycle (the simulated segment follows it), a 9 ms lease and data up to
 /// 15 cycles old (the shipped rules are for the real machine's 400 us, 0.8 ms and 3 cycles);
 /// the supervisor's prediction horizon grows with them, so the demo is more cautious, not
 /// less.
@@ -48,7 +44,9 @@ pub fn write_demo_cell(dir: &Path, listen: &str) -> io::Result<PathBuf> {
     let cell = DEMO_CELL
         .replace("/tmp/motus-demo/", &format!("{}/links/", dir.display()))
         .replace("127.0.0.1:29536", &format!("127.0.0.1:{}", free_tcp_port()?))
-        .replace("udp://127.0.0.1:24000", &format!("udp://127.0.0.1:{}", free_udp_block()?))
+        // The juggler's whole segment runs inside the demo: an in-process medium (no socket,
+        // no kernel path; see motus_epl::transport::MemLink), one per demo cell.
+        .replace("udp://127.0.0.1:24000", &format!("mem://juggler-{}", unique_segment()))
         .replace("../../safety/examples/juggler.toml", "juggler.toml")
         .replace("listen = \"127.0.0.1:8080\"", &format!("listen = \"{listen}\""));
     let path = dir.join("demo-cell.toml");

@@ -357,8 +357,12 @@ pub fn start(
     config.validate()?;
     let listen = config.listen;
     let io = |source| WebError::Io { addr: listen, source };
+    // One worker per core beyond the first, at most 4: the machine's threads keep a core
+    // (with 2 workers on a 2-core host, a saturating client load took both cores, and the
+    // juggler's 9 ms lease expired 3-4 times a minute; 1 worker: 1, with more requests served).
+    let workers = std::thread::available_parallelism().map_or(1, |n| n.get().saturating_sub(1).clamp(1, 4));
     let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
+        .worker_threads(workers)
         .thread_name("motus-web")
         // Web work yields to the machine: workers and blocking threads at nice +10 under the
         // process's real-time policy (docs/decisions.md, "Real-time priorities").

@@ -7,6 +7,7 @@
 //! PReq included, as on a hub or a bridge with ageing time 0.
 
 mod faulty;
+mod mem;
 mod pcap;
 pub mod raw;
 mod udp;
@@ -18,6 +19,7 @@ use std::time::{Duration, Instant};
 use motus_epl_protocol::MacAddr;
 
 pub use faulty::{FaultConfig, FaultCounters, FaultyLink};
+pub use mem::{MemHub, MemLink, MEM_QUEUE_FRAMES};
 pub use pcap::PcapLink;
 pub use raw::RawSocket;
 pub use udp::{UdpHub, UdpLink};
@@ -106,6 +108,8 @@ pub const UDP_SEGMENT_SLOTS: u16 = 16;
 /// Opens a link named on the command line:
 /// * `udp://127.0.0.1:3819` joins the UDP segment of [`UDP_SEGMENT_SLOTS`] ports from 3819
 ///   ([`UdpLink::join_segment`]; no privileges needed; `?slots=N` changes the block size);
+/// * `mem://<name>` joins the in-process segment `<name>` ([`MemHub::named`]): for a
+///   segment whose nodes all run in this process (no socket, no kernel path);
 /// * anything else is a Linux interface name opened as a [`RawSocket`] (needs CAP_NET_RAW),
 ///   promiscuous when `promiscuous` is set.
 pub fn open_link(name: &str, promiscuous: bool) -> io::Result<Arc<dyn EthLink>> {
@@ -131,6 +135,15 @@ pub fn open_link(name: &str, promiscuous: bool) -> io::Result<Arc<dyn EthLink>> 
             }
         }
         return Ok(Arc::new(UdpLink::join_segment(base, slots)?));
+    }
+    if let Some(hub) = name.strip_prefix("mem://") {
+        if hub.is_empty() {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("{name}: the segment needs a name"),
+            ));
+        }
+        return Ok(Arc::new(MemHub::named(hub).connect()));
     }
     Ok(Arc::new(RawSocket::open(name, promiscuous)?))
 }

@@ -308,3 +308,15 @@ fn station_origins_are_scheme_host_port() {
         assert_eq!(one_error(&text).key, "station.origins", "{bad}");
     }
 }
+
+#[test]
+fn powerlink_links_take_udp_mem_or_an_interface() {
+    let cell = |uri: &str| format!("{BASE}\n[[link]]\nname = \"epl\"\nkind = \"powerlink\"\nuri = \"{uri}\"\n");
+    for ok in ["udp://127.0.0.1:24000", "mem://juggler-1", "eth0"] {
+        parse(&cell(ok)).unwrap_or_else(|e| panic!("{ok}: {e:?}"));
+    }
+    for bad in ["mem://", "mem://a b", "tcp://127.0.0.1:1"] {
+        let e = one_error(&cell(bad));
+        assert!(e.to_string().contains("mem://NAME"), "{bad}: {e}");
+    }
+}

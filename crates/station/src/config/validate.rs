@@ -229,8 +229,11 @@ impl<'a> Validator<'a> {
             {
                 Some("must be socketcand://HOST:PORT/CHANNEL, socketcan://IFACE or slcan://PATH?bitrate=N")
             }
-            LinkKind::Powerlink if uri.is_empty() || (uri.contains("://") && !udp_uri_ok(uri)) => {
-                Some("must be udp://HOST:PORT or a network interface name")
+            LinkKind::Powerlink
+                if uri.is_empty()
+                    || (uri.contains("://") && !udp_uri_ok(uri) && !mem_uri_ok(uri)) =>
+            {
+                Some("must be udp://HOST:PORT, mem://NAME (a segment inside this process) or a network interface name")
             }
             _ => None,
         };
@@ -653,6 +656,13 @@ impl<'a> Validator<'a> {
             overrun_limit,
         }
     }
+}
+
+/// `mem://NAME`: an in-process POWERLINK segment (letters, digits, `-`, `_`, `.`).
+fn mem_uri_ok(uri: &str) -> bool {
+    uri.strip_prefix("mem://").is_some_and(|n| {
+        !n.is_empty() && n.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+    })
 }
 
 /// `udp://HOST:PORT` with a parseable port.
