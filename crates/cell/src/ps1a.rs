@@ -110,7 +110,15 @@ impl Ps1aDevice {
         let max = if (units - units.round()).abs() < 1e-6 { units.round() } else { units.floor() };
         let max_position = U24::new(if max >= 1.0 { max as u32 } else { 1 }).unwrap_or(U24::MAX);
         let config = AxisConfig { addr, scale, max_position, ..AxisConfig::default() };
-        Ok(Self { name: device.name.clone(), axis, link, config, slot, bus: Mutex::new(None), misses: AtomicU32::new(0) })
+        Ok(Self {
+            name: device.name.clone(),
+            axis,
+            link,
+            config,
+            slot,
+            bus: Mutex::new(None),
+            misses: AtomicU32::new(0),
+        })
     }
 }
 

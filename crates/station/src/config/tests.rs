@@ -311,7 +311,8 @@ fn station_origins_are_scheme_host_port() {
 
 #[test]
 fn powerlink_links_take_udp_mem_or_an_interface() {
-    let cell = |uri: &str| format!("{BASE}\n[[link]]\nname = \"epl\"\nkind = \"powerlink\"\nuri = \"{uri}\"\n");
+    let cell =
+        |uri: &str| format!("{BASE}\n[[link]]\nname = \"epl\"\nkind = \"powerlink\"\nuri = \"{uri}\"\n");
     for ok in ["udp://127.0.0.1:24000", "mem://juggler-1", "eth0"] {
         parse(&cell(ok)).unwrap_or_else(|e| panic!("{ok}: {e:?}"));
     }
