@@ -118,6 +118,11 @@ pub(crate) trait DeviceCtl: Send + Sync {
     fn needs_operator(&self) -> Option<String> {
         None
     }
+    /// Failed health checks in a row that make the device lost
+    /// ([`DeviceHandle::lost_after_misses`]).
+    fn lost_after_misses(&self) -> u32 {
+        1
+    }
 }
 
 /// The port a serial path names now (`None`: it does not exist): a restarted simulator's
@@ -160,6 +165,10 @@ impl DeviceHandle for CellDevice {
 
     fn needs_operator(&mut self) -> Option<String> {
         self.ctl.needs_operator()
+    }
+
+    fn lost_after_misses(&self) -> u32 {
+        self.ctl.lost_after_misses()
     }
 }
 

@@ -2,7 +2,6 @@
 //! module on a bus shared by the link (as `motus axis ps1a://...` opens it).
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 
 use motus_axis::FaultKind;
@@ -81,14 +80,11 @@ pub(crate) struct Ps1aDevice {
     slot: Slot,
     /// The bus of the last connect.
     bus: Mutex<Option<Ps1aBus>>,
-    /// Health checks in a row that got no valid reply (see [`LOST_AFTER_MISSES`]).
-    misses: AtomicU32,
 }
 
 /// A module counts as lost after this many health checks in a row without a valid reply: a
 /// loaded host drops a reply now and then (the 32.5 ms reply window), and one miss must not
-/// take the axis away mid-move. A module that answers "no parameters" (it restarted) is
-/// reconnected at once.
+/// take the axis away mid-move.
 const LOST_AFTER_MISSES: u32 = 3;
 
 impl Ps1aDevice {
@@ -110,15 +106,7 @@ impl Ps1aDevice {
         let max = if (units - units.round()).abs() < 1e-6 { units.round() } else { units.floor() };
         let max_position = U24::new(if max >= 1.0 { max as u32 } else { 1 }).unwrap_or(U24::MAX);
         let config = AxisConfig { addr, scale, max_position, ..AxisConfig::default() };
-        Ok(Self {
-            name: device.name.clone(),
-            axis,
-            link,
-            config,
-            slot,
-            bus: Mutex::new(None),
-            misses: AtomicU32::new(0),
-        })
+        Ok(Self { name: device.name.clone(), axis, link, config, slot, bus: Mutex::new(None) })
     }
 }
 
@@ -145,7 +133,6 @@ impl DeviceCtl for Ps1aDevice {
         bus.write_parameters(self.config.addr, parameters)
             .map_err(|e| DeviceError::Refused(e.to_string()))?;
         put(&self.slot, Box::new(axis));
-        self.misses.store(0, Ordering::Relaxed);
         *self.bus.lock().unwrap_or_else(PoisonError::into_inner) = Some(bus);
         Ok(())
     }
@@ -157,17 +144,8 @@ impl DeviceCtl for Ps1aDevice {
         let bus = self.bus.lock().unwrap_or_else(PoisonError::into_inner).clone();
         let Some(bus) = bus else { return false };
         match bus.transact(self.config.addr, Command::StatusRequest) {
-            Ok(r) if !r.low.has(LowStatus::NO_PARAMETERS) => self.misses.store(0, Ordering::Relaxed),
-            Ok(_) => return false,
-            Err(e) => {
-                let misses = self.misses.fetch_add(1, Ordering::Relaxed) + 1;
-                if misses >= LOST_AFTER_MISSES {
-                    self.misses.store(0, Ordering::Relaxed);
-                    return false;
-                }
-                tracing::debug!(device = %self.name, misses, "health check without a valid reply: {e}");
-                return true;
-            }
+            Ok(r) if !r.low.has(LowStatus::NO_PARAMETERS) => {}
+            _ => return false,
         }
         match self.slot.try_lock() {
             Ok(mut g) => g.as_mut().is_some_and(|a| {
@@ -175,5 +153,9 @@ impl DeviceCtl for Ps1aDevice {
             }),
             Err(_) => true,
         }
+    }
+
+    fn lost_after_misses(&self) -> u32 {
+        LOST_AFTER_MISSES
     }
 }

@@ -171,7 +171,10 @@ impl StationMachine {
         let estimate = self.shared.robot.as_ref().ok_or_else(|| {
             BackendError::State(format!("group {}: the robot needs three wheel axes", g.name))
         })?;
-        let travel = lock(estimate).travel_to(x, y, heading)?;
+        let (travel, min_rates) = {
+            let e = lock(estimate);
+            (e.travel_to(x, y, heading)?, e.min_rates())
+        };
         let views = g.axes.iter().map(|a| self.view(a)).collect::<Result<Vec<_>, _>>()?;
         // The slowest wheel's speed and acceleration bound the move (a student's: within the
         // student maxima).
@@ -190,7 +193,7 @@ impl StationMachine {
         // checked as the absolute move it amounts to.
         let mut moves = Vec::new();
         for ((v, t), sync) in
-            views.iter().zip(travel).zip(crate::robot::synchronised(travel, speed, acceleration))
+            views.iter().zip(travel).zip(crate::robot::synchronised(travel, speed, acceleration, min_rates))
         {
             let Some((speed, acceleration)) = sync else { continue };
             let action = AxisAction::Move { target: v.position + t, speed, acceleration: Some(acceleration) };

@@ -18,8 +18,10 @@ use motus_station_web::BackendError;
 /// `[xmin, ymin, xmax, ymax]`: a target outside is refused for every user.
 pub(crate) const ROBOT_AREA: [f64; 4] = [-2.0, -2.0, 2.0, 2.0];
 
-/// A wheel whose travel is below this (metres) is not commanded.
-const MIN_WHEEL_TRAVEL_M: f64 = 1e-5;
+/// The slowest speed (increments/s) and acceleration (increments/s^2) a wheel is commanded
+/// with: a drive takes whole increments, and a wheel with a tiny share of the motion would
+/// otherwise get 0 (refused). Such a wheel ends a little early: its travel is tiny.
+const MIN_WHEEL_RATE_INC: f64 = 2.0;
 
 /// The pose estimate of an omni group: wheel odometry on the wheel axes' positions.
 #[derive(Debug)]
@@ -104,27 +106,39 @@ impl RobotEstimate {
         let metres = self.odometry.geometry().inverse(from.motion_to(to));
         let mut travel = [0.0; 3];
         for ((t, m), inc) in travel.iter_mut().zip(metres).zip(self.inc_per_unit) {
-            if m.abs() >= MIN_WHEEL_TRAVEL_M && inc > 0.0 {
-                *t = self.odometry.geometry().metres_to_inc(m) / inc;
+            let increments = self.odometry.geometry().metres_to_inc(m);
+            // Less than one increment: the drive cannot move it.
+            if increments.abs() >= 1.0 && inc > 0.0 {
+                *t = increments / inc;
             }
         }
         Ok(travel)
     }
+
+    /// Each wheel's slowest commandable speed (axis units/s) and acceleration (axis units/s^2).
+    pub(crate) fn min_rates(&self) -> [f64; 3] {
+        self.inc_per_unit.map(|inc| if inc > 0.0 { MIN_WHEEL_RATE_INC / inc } else { 0.0 })
+    }
 }
 
 /// Speeds and accelerations of wheel moves with `travel` that start and end together: the
-/// longest travel gets `speed` and `acceleration`, the others the same fractions of them.
-/// `None` for a wheel that does not move.
-pub(crate) fn synchronised(travel: [f64; 3], speed: f64, acceleration: f64) -> [Option<(f64, f64)>; 3] {
+/// longest travel gets `speed` and `acceleration`, the others the same fractions of them, but
+/// never less than the wheel's `min` rate. `None` for a wheel that does not move.
+pub(crate) fn synchronised(
+    travel: [f64; 3],
+    speed: f64,
+    acceleration: f64,
+    min: [f64; 3],
+) -> [Option<(f64, f64)>; 3] {
     let longest = travel.iter().fold(0.0f64, |a, t| a.max(t.abs()));
-    travel.map(|t| {
-        if t == 0.0 || longest == 0.0 {
-            None
-        } else {
+    let mut out = [None; 3];
+    for ((o, t), m) in out.iter_mut().zip(travel).zip(min) {
+        if t != 0.0 && longest > 0.0 {
             let k = t.abs() / longest;
-            Some((speed * k, acceleration * k))
+            *o = Some(((speed * k).max(m), (acceleration * k).max(m)));
         }
-    })
+    }
+    out
 }
 
 #[cfg(test)]
@@ -192,8 +206,26 @@ mod tests {
 
     #[test]
     fn synchronised_moves_scale_with_their_travel() {
-        let s = synchronised([2.0, -1.0, 0.0], 4.0, 10.0);
+        let s = synchronised([2.0, -1.0, 0.0], 4.0, 10.0, [0.0; 3]);
         assert_eq!(s, [Some((4.0, 10.0)), Some((2.0, 5.0)), None]);
-        assert_eq!(synchronised([0.0; 3], 4.0, 10.0), [None, None, None]);
+        assert_eq!(synchronised([0.0; 3], 4.0, 10.0, [0.0; 3]), [None, None, None]);
+        // A wheel with a tiny share still gets a speed its drive accepts.
+        let s = synchronised([2.0, 0.001, 0.0], 4.0, 10.0, [0.05; 3]);
+        assert_eq!(s[1], Some((0.05, 0.05)));
+    }
+
+    #[test]
+    fn a_wheel_with_less_than_one_increment_is_not_commanded_and_the_others_get_commandable_rates() {
+        let e = estimate();
+        // Along y, wheel 1 (driving along x) has almost nothing to do.
+        let travel = e.travel_to(0.0002, 0.5, None).unwrap();
+        assert_eq!(travel[0], 0.0, "{travel:?}");
+        assert!(travel[1].abs() > 1.0 && travel[2].abs() > 1.0, "{travel:?}");
+        let min = e.min_rates();
+        for (t, r) in travel.iter().zip(synchronised(travel, 5.0, 10.0, min)) {
+            if let Some((v, a)) = r {
+                assert!(v / RAD_PER_INC >= 1.0 && a / RAD_PER_INC >= 1.0, "{t}: {v} {a}");
+            }
+        }
     }
 }

@@ -50,6 +50,12 @@ pub trait DeviceHandle: Send {
     fn needs_operator(&mut self) -> Option<String> {
         None
     }
+    /// How many failed health checks in a row make the device lost (default 1). A device whose
+    /// check is one request with a short reply window (a PS1A module: 32.5 ms) says more, so
+    /// that a reply a loaded host dropped does not take its axes away mid-move.
+    fn lost_after_misses(&self) -> u32 {
+        1
+    }
 }
 
 /// Where the reconnector marks axes faulted (and asks for their stop) and clears them.
@@ -193,6 +199,8 @@ struct Entry {
     axes: Vec<String>,
     state: ConnState,
     losses: u64,
+    /// Failed health checks in a row while connected.
+    misses: u32,
     /// The operator condition the active [`AlarmCode::DeviceLatched`] alarm reports.
     latched: Option<String>,
 }
@@ -257,7 +265,14 @@ impl Reconnector {
         for a in &axes {
             self.gate.fault(a, &format!("device {} not connected yet", handle.name()));
         }
-        self.entries.push(Entry { handle, axes, state: ConnState::Pending, losses: 0, latched: None });
+        self.entries.push(Entry {
+            handle,
+            axes,
+            state: ConnState::Pending,
+            losses: 0,
+            misses: 0,
+            latched: None,
+        });
     }
 
     /// Every device's state.
@@ -294,9 +309,16 @@ impl Reconnector {
             let due = match &e.state {
                 ConnState::Connected => {
                     if e.handle.is_connected() {
+                        e.misses = 0;
                         update_latched(e, &name, &*self.alarms);
                         continue;
                     }
+                    e.misses += 1;
+                    if e.misses < e.handle.lost_after_misses() {
+                        tracing::debug!(device = %name, misses = e.misses, "health check failed");
+                        continue;
+                    }
+                    e.misses = 0;
                     e.losses += 1;
                     tracing::warn!(device = %name, "device lost; its axes are faulted and stopped");
                     let reason = format!("device {name} disconnected");
@@ -593,5 +615,57 @@ mod tests {
         assert!(r.faults.faulted().is_empty());
         assert!(r.alarms.active().is_empty());
         assert_eq!(r.rec.status()[0].losses, 1);
+    }
+
+    /// A device whose health checks fail while `failing` is set; lost after `after` misses.
+    struct FlakyDevice {
+        failing: Arc<AtomicBool>,
+        after: u32,
+    }
+
+    impl DeviceHandle for FlakyDevice {
+        fn name(&self) -> &str {
+            "ps1a-1"
+        }
+        fn connect(&mut self) -> Result<(), DeviceError> {
+            if self.failing.load(Ordering::SeqCst) {
+                return Err(DeviceError::NoAnswer("no reply".into()));
+            }
+            Ok(())
+        }
+        fn is_connected(&mut self) -> bool {
+            !self.failing.load(Ordering::SeqCst)
+        }
+        fn axes(&self) -> Vec<String> {
+            vec!["linear1".into()]
+        }
+        fn lost_after_misses(&self) -> u32 {
+            self.after
+        }
+    }
+
+    #[test]
+    fn a_device_is_lost_only_after_its_number_of_failed_checks_in_a_row() {
+        let alarms = Arc::new(MemoryAlarms::new());
+        let faults = Arc::new(FaultTable::new());
+        let mut rec = Reconnector::new(Backoff::default(), alarms.clone(), faults.clone());
+        let failing = Arc::new(AtomicBool::new(false));
+        rec.add(Box::new(FlakyDevice { failing: failing.clone(), after: 3 }));
+        let t0 = Instant::now();
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        rec.poll(at(0));
+        assert_eq!(rec.status()[0].state, ConnState::Connected);
+        // Two misses, then a good check: still connected, nothing raised.
+        for (k, fail) in [true, true, false, true, true].into_iter().enumerate() {
+            failing.store(fail, Ordering::SeqCst);
+            rec.poll(at(100 * (k as u64 + 1)));
+            assert_eq!(rec.status()[0].state, ConnState::Connected, "check {k}");
+        }
+        assert!(faults.faulted().is_empty());
+        // The third miss in a row: lost, faulted, alarmed.
+        rec.poll(at(600));
+        assert_ne!(rec.status()[0].state, ConnState::Connected);
+        assert!(faults.fault_of("linear1").is_some());
+        assert_eq!(alarms.active().len(), 1);
     }
 }
