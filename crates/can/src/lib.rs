@@ -5,6 +5,8 @@
 //! receive on one thread and send from others.
 //!
 //! - [`memory`]: an in-process virtual bus for unit tests.
+//! - [`pair`]: a bus whose other end is an in-process peer (a simulated device) that
+//!   answers synchronously, on a [`motus_clock::Clock`] (virtual time in tests).
 //! - [`socketcand`]: the socketcand protocol: a TCP hub that is a virtual bus shared with
 //!   independent tools (python-can, python-canopen), and a client of hubs and daemons.
 //! - [`socketcan`]: real adapters through Linux SocketCAN.
@@ -18,6 +20,7 @@
 
 pub mod decorate;
 pub mod memory;
+pub mod pair;
 pub mod reconnect;
 pub mod slcan;
 #[cfg(target_os = "linux")]
@@ -27,7 +30,8 @@ pub mod uri;
 pub mod wire_time;
 
 pub use memory::{MemoryHub, MemoryPort};
-pub use motus_canopen_protocol::CanFrame;
+pub use motus_can_frame::CanFrame;
+pub use pair::{PairBus, PairPeer};
 pub use reconnect::{ReconnectPolicy, ReconnectingBus, WhileDown};
 pub use uri::{open_bus, BusUri};
 

@@ -1,6 +1,6 @@
 //! SDO abort codes (CiA 301 §7.2.4.3.17, table 22). Total: unknown codes stay raw.
 
-crate::code_table! {
+motus_wire::code_table! {
     /// SDO abort code (UNSIGNED32, bytes 4–7 of an abort frame), CiA 301 table 22.
     SdoAbortCode: u32 as "u32" {
         /// 0x05030000

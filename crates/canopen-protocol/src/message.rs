@@ -7,10 +7,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::emcy::EmcyClass;
 use crate::error::{check_len, EncodeError};
-use crate::frame::CanFrame;
 use crate::lss::{LssRequest, LssResponse};
 use crate::nmt::{NmtCommand, NmtState};
 use crate::sdo::{SdoPayload, SdoRequest, SdoResponse};
+use motus_can_frame::CanFrame;
 
 /// COB-ID of LSS slave → master frames.
 pub const LSS_SLAVE_TO_MASTER: u32 = 0x7E4;
@@ -278,9 +278,12 @@ impl fmt::Display for CanOpenMessage {
                     SdoRequest::UploadSegment { toggle } => {
                         write!(f, "SDO upload segment request t={}", u8::from(*toggle))?
                     }
-                    SdoRequest::Abort { index, subindex, code } => {
-                        write!(f, "SDO abort 0x{index:04X}:{subindex:02X} 0x{:08X} {code}", code.raw())?
-                    }
+                    SdoRequest::Abort { index, subindex, code } => write!(
+                        f,
+                        "SDO abort 0x{index:04X}:{subindex:02X} 0x{:08X} {}",
+                        code.raw(),
+                        code.description()
+                    )?,
                 }
                 write!(f, " (node {node})")
             }
@@ -303,9 +306,12 @@ impl fmt::Display for CanOpenMessage {
                     SdoResponse::DownloadSegment { toggle } => {
                         write!(f, "SDO download segment response t={}", u8::from(*toggle))?
                     }
-                    SdoResponse::Abort { index, subindex, code } => {
-                        write!(f, "SDO abort 0x{index:04X}:{subindex:02X} 0x{:08X} {code}", code.raw())?
-                    }
+                    SdoResponse::Abort { index, subindex, code } => write!(
+                        f,
+                        "SDO abort 0x{index:04X}:{subindex:02X} 0x{:08X} {}",
+                        code.raw(),
+                        code.description()
+                    )?,
                 }
                 write!(f, " (node {node})")
             }

@@ -1,7 +1,7 @@
 //! NMT: module control commands (COB-ID 0x000) and the NMT states reported by
 //! heartbeat / boot-up (COB-ID 0x700 + node), CiA 301 §7.2.8.3.
 
-crate::code_table! {
+motus_wire::code_table! {
     /// NMT command specifier (byte 0 of a COB-ID 0x000 frame), CiA 301 §7.2.8.3.1.
     NmtCommand: u8 as "u8" {
         /// 0x01: start remote node (enter Operational).
@@ -17,7 +17,7 @@ crate::code_table! {
     }
 }
 
-crate::code_table! {
+motus_wire::code_table! {
     /// NMT state byte of a heartbeat frame, CiA 301 §7.2.8.3.2.
     NmtState: u8 as "u8" {
         /// 0x00: boot-up (sent once after initialisation).

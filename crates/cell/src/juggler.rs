@@ -1,12 +1,13 @@
 //! The juggler on POWERLINK: the simulated segment over UDP (`motus sim epl`: MN + one
 //! drive CN per rules axis, needing the safety lease), the online supervisor on its own
-//! thread (`motus safety run`; integrity checked when the cell names an approval and a key,
-//! else as with `--no-integrity`), a passive [`Monitor`] feeding read-only axes, and the
-//! shared [`SupervisorSnapshot`].
+//! thread (the loop of `motus safety run`: [`OnlineSupervisor::run`]; integrity of the rules
+//! and the drive parameters watched by the same [`IntegrityWatcher`] when the cell names an
+//! approval and a key, else as with `--no-integrity`), a passive [`Monitor`] feeding
+//! read-only axes, and the shared [`SupervisorSnapshot`].
 
 use std::collections::BTreeMap;
 use std::ops::ControlFlow;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError, TryLockError};
@@ -21,9 +22,12 @@ use motus_epl::sim::{MnConfig, Segment};
 use motus_epl::{open_link, Monitor, MonitorConfig};
 use motus_epl_protocol::{NodeValues, Value, ValueMap, ValueSpec, ValueType};
 use motus_safety::predict::Reach;
-use motus_safety::{secret_hash, Approval, Integrity, Mode, RuleSet, Sample, Snapshot};
+use motus_safety::{config_files, ConfigFiles, Mode, RuleSet, Sample};
 use motus_safety_epl::juggler::{self, Pattern};
-use motus_safety_epl::{EplLeaseTarget, InputMap, OnlineConfig, OnlineEvent, OnlineSupervisor};
+use motus_safety_epl::{
+    Command, EplLeaseTarget, InputMap, IntegrityWatcher, OnlineConfig, OnlineEvent, OnlineSupervisor,
+    ServeEvent,
+};
 use motus_station::config::{AxisConfig, Supervisor};
 use motus_station::devices::DeviceError;
 
@@ -79,16 +83,6 @@ impl Default for SupervisorSnapshot {
     }
 }
 
-/// Operator commands to the supervisor thread.
-enum Op {
-    StopAll,
-    Reset,
-    /// A fresh integrity check of the configuration (rules, approval, key).
-    Integrity(Result<(), String>),
-    /// New rules, approved and written by the station (an administrator's change).
-    Rules(Box<RuleSet>),
-}
-
 /// How often the configuration's integrity is checked.
 const INTEGRITY_EVERY: Duration = Duration::from_secs(1);
 
@@ -110,7 +104,7 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 /// The supervisor, the monitor and their shared state.
 pub struct JugglerHandle {
     snapshot: Arc<Mutex<SupervisorSnapshot>>,
-    ops: Mutex<Sender<Op>>,
+    ops: Mutex<Sender<Command>>,
     views: Views,
     stop: Arc<AtomicBool>,
     threads: Mutex<Vec<JoinHandle<()>>>,
@@ -131,12 +125,12 @@ impl JugglerHandle {
 
     /// Operator stop: revokes the safety lease (every juggler drive quick-stops).
     pub fn stop_all(&self) {
-        let _ = lock(&self.ops).send(Op::StopAll);
+        let _ = lock(&self.ops).send(Command::StopAll);
     }
 
     /// Operator reset after a stop (manual restart).
     pub fn reset(&self) {
-        let _ = lock(&self.ops).send(Op::Reset);
+        let _ = lock(&self.ops).send(Command::Reset);
     }
 
     /// The latest PRes of every drive seen by the monitor: `f(node, position, speed,
@@ -149,8 +143,13 @@ impl JugglerHandle {
 
     /// Installs `rules` in the running supervisor (after the station wrote and approved
     /// them): the drives are stopped and held until an operator's reset.
-    pub fn install_rules(&self, rules: RuleSet) {
-        let _ = lock(&self.ops).send(Op::Rules(Box::new(rules)));
+    ///
+    /// # Errors
+    /// The rules' axes are not drives of the segment (the message says which).
+    pub fn install_rules(&self, rules: RuleSet) -> Result<(), String> {
+        let inputs = juggler_inputs(&rules).map_err(|e| format!("rules not installed: {e}"))?;
+        let _ = lock(&self.ops).send(Command::Rules { rules: Box::new(rules), inputs: Box::new(inputs) });
+        Ok(())
     }
 
     /// The program the juggler runs (`None`: not selectable here, e.g. a real machine whose
@@ -186,9 +185,13 @@ impl JugglerHandle {
 
 /// Reads the rules file.
 pub(crate) fn read_rules(path: &Path) -> Result<RuleSet, CellError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| CellError::Config(format!("cannot read the rules {}: {e}", path.display())))?;
-    RuleSet::from_toml(&text).map_err(|e| CellError::Config(format!("rules {}: {e}", path.display())))
+    config_files::read_rules(path).map_err(|e| CellError::Config(e.to_string()))
+}
+
+/// The supervisor's inputs for `rules` on the juggler's segment (the simulated drives' PRes
+/// layout).
+fn juggler_inputs(rules: &RuleSet) -> Result<InputMap, motus_safety_epl::InputError> {
+    InputMap::new(rules, juggler::value_map(rules), STATUS_HOMED)
 }
 
 /// The simulated segment (MN + one drive CN per rules axis on `uri`).
@@ -273,44 +276,6 @@ fn value_map(nodes: &[u8]) -> ValueMap {
     }
 }
 
-/// Reads the administrator key file (trailing whitespace removed), as `motus safety approve`.
-///
-/// # Errors
-/// The file cannot be read (the message names it).
-pub fn read_key(path: &Path) -> Result<Vec<u8>, String> {
-    let mut key = std::fs::read(path).map_err(|e| format!("cannot read the key {}: {e}", path.display()))?;
-    while key.last().is_some_and(u8::is_ascii_whitespace) {
-        key.pop();
-    }
-    Ok(key)
-}
-
-/// The integrity of `rules` against the signed approval (as `motus safety run`).
-fn integrity(rules_file: &Path, approval: &Path, key: &Path) -> Result<(), String> {
-    let key = read_key(key)?;
-    let text =
-        std::fs::read_to_string(approval).map_err(|e| format!("approval {}: {e}", approval.display()))?;
-    let approved = Approval::from_toml(&text).and_then(|a| a.verify(&key)).map_err(|e| e.to_string())?;
-    let set = read_rules(rules_file).map_err(|e| e.to_string())?;
-    Integrity::new(approved, secret_hash(&key)).check(&Snapshot::new(&set, &[])).map_err(|e| e.to_string())
-}
-
-/// What the integrity check needs, when the cell names an approval and a key.
-struct Watch {
-    rules: PathBuf,
-    approval: Option<PathBuf>,
-    key: Option<PathBuf>,
-}
-
-impl Watch {
-    fn check(&self) -> Result<(), String> {
-        match (&self.approval, &self.key) {
-            (Some(a), Some(k)) => integrity(&self.rules, a, k),
-            _ => Err("the cell names an approval or a key but not both".into()),
-        }
-    }
-}
-
 /// Starts the supervisor and the monitor on `uri` for `nodes`.
 pub(crate) fn start(
     uri: &str,
@@ -321,62 +286,60 @@ pub(crate) fn start(
     program: Option<Arc<ProgramSelector>>,
 ) -> Result<JugglerHandle, CellError> {
     let err = |reason: String| CellError::Simulator { name: uri.into(), reason };
-    let watch = (sup.approval.is_some() || sup.key.is_some()).then(|| Watch {
-        rules: sup.rules.clone(),
-        approval: sup.approval.clone(),
-        key: sup.key.clone(),
-    });
+    // Integrity: the cell's approved configuration files, or none (disabled).
+    let files = match (&sup.approval, &sup.key) {
+        (Some(approval), Some(key)) => Some(Ok(ConfigFiles {
+            rules: sup.rules.clone(),
+            drives: sup.drives.clone(),
+            approval: approval.clone(),
+            key: key.clone(),
+        })),
+        (None, None) => None,
+        _ => Some(Err("the cell names an approval or a key but not both".to_owned())),
+    };
     let link = open_link(uri, true).map_err(|e| err(format!("cannot join {uri}: {e}")))?;
     let origin = Instant::now();
-    let map = juggler::value_map(&rules);
-    let inputs = InputMap::new(&rules, map, STATUS_HOMED).map_err(|e| CellError::Config(e.to_string()))?;
+    let inputs = juggler_inputs(&rules).map_err(|e| CellError::Config(e.to_string()))?;
     let renew = Duration::from_secs_f64(rules.config().supervisor.cycle_time.max(0.0001));
     let target = EplLeaseTarget::new(Arc::clone(&link), origin, options.wire_lease, renew, [0; 8]);
     let config = OnlineConfig { mode: Mode::Normal, restart: options.supervisor_restart };
-    let mut online = OnlineSupervisor::new(rules, inputs, vec![Box::new(target)], origin, config);
-    let first = watch.as_ref().map_or(Ok(()), Watch::check);
-    online.set_integrity(first.clone());
+    let mut online = OnlineSupervisor::new(rules.clone(), inputs, vec![Box::new(target)], origin, config);
+    let integrity_disabled = files.is_none();
+    match &files {
+        None => {
+            tracing::warn!("juggler supervisor: INTEGRITY CHECK DISABLED (no approval/key in the cell file)");
+            online.set_integrity(Ok(()));
+        }
+        // Fail closed: nothing may run until the cell file is fixed.
+        Some(Err(why)) => online.set_integrity(Err(why.clone())),
+        // The watcher's first check comes at once.
+        Some(Ok(_)) => {}
+    }
     let snapshot = Arc::new(Mutex::new(SupervisorSnapshot {
-        integrity: first,
-        integrity_disabled: watch.is_none(),
+        integrity: online.integrity().clone(),
+        integrity_disabled,
         ..SupervisorSnapshot::default()
     }));
-    if watch.is_none() {
-        tracing::warn!("juggler supervisor: INTEGRITY CHECK DISABLED (no approval/key in the cell file)");
-    }
     let (tx, rx) = channel();
     let stop = Arc::new(AtomicBool::new(false));
     let views: Views = Arc::new(Mutex::new(BTreeMap::new()));
     let mut threads = Vec::new();
-    if let Some(w) = watch {
-        // Reading and hashing the files takes milliseconds: never on the supervisor's thread,
-        // whose lease must be renewed every cycle.
-        let (ops, stop) = (tx.clone(), Arc::clone(&stop));
-        let t = std::thread::Builder::new()
-            .name("juggler-integrity".into())
-            .spawn(move || {
-                let mut last = Instant::now();
-                while !stop.load(Ordering::Relaxed) {
-                    std::thread::sleep(Duration::from_millis(50));
-                    if last.elapsed() >= INTEGRITY_EVERY {
-                        last = Instant::now();
-                        if ops.send(Op::Integrity(w.check())).is_err() {
-                            break;
-                        }
-                    }
-                }
-            })
-            .map_err(|e| err(e.to_string()))?;
-        threads.push(t);
+    if let Some(Ok(files)) = files {
+        // Rules approved anew on disk (`motus safety approve`) are installed as in
+        // `motus safety run`; the station's own change arrives through `install_rules` first.
+        let watcher =
+            IntegrityWatcher::new(files, INTEGRITY_EVERY).reload_rules(rules, Box::new(juggler_inputs));
+        threads.push(
+            watcher
+                .spawn("juggler-integrity", tx.clone(), Arc::clone(&stop))
+                .map_err(|e| err(e.to_string()))?,
+        );
     }
     {
         let (snap, stop) = (Arc::clone(&snapshot), Arc::clone(&stop));
         let t = std::thread::Builder::new()
             .name("juggler-supervisor".into())
-            .spawn(move || {
-                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
-                supervise(online, &*link, rx, &snap, &stop)
-            })
+            .spawn(move || supervise(online, &*link, &rx, &snap, &stop))
             .map_err(|e| err(e.to_string()))?;
         threads.push(t);
     }
@@ -410,93 +373,69 @@ pub(crate) fn start(
     Ok(JugglerHandle { snapshot, ops: Mutex::new(tx), views, stop, threads: Mutex::new(threads), program })
 }
 
-/// The supervisor thread: every frame and tick, operator commands and integrity results.
+/// The supervisor thread: the one supervisor loop ([`OnlineSupervisor::run`]), publishing
+/// its state into `snapshot`.
 fn supervise(
     mut sup: OnlineSupervisor,
     link: &dyn motus_epl::EthLink,
-    ops: Receiver<Op>,
+    commands: &Receiver<Command>,
     snapshot: &Mutex<SupervisorSnapshot>,
     stop: &AtomicBool,
 ) {
-    let mut buf = vec![0u8; motus_epl::transport::MAX_FRAME];
     let mut last_publish = Instant::now();
     let mut names: Vec<String> = sup.supervisor().rules().axes().iter().map(|a| a.name.clone()).collect();
     // This thread's own copy of what it publishes. Readers (web threads, at a lower
     // priority) hold the shared snapshot's lock while they copy it; a reader preempted there
     // must never make this thread wait, whose lease is renewed every cycle. So the copy is
-    // published only when the lock is free, and tried again at the next frame otherwise.
+    // published only when the lock is free, and tried again at the next pass otherwise.
     let mut mine = lock(snapshot).clone();
     let mut dirty = false;
-    while !stop.load(Ordering::Relaxed) {
-        while let Ok(op) = ops.try_recv() {
-            match op {
-                Op::StopAll => sup.stop_all(),
-                Op::Reset => sup.reset(),
-                Op::Integrity(r) => {
-                    sup.set_integrity(r.clone());
-                    mine.integrity = r;
-                    dirty = true;
-                }
-                Op::Rules(rules) => match InputMap::new(&rules, juggler::value_map(&rules), STATUS_HOMED) {
-                    Ok(inputs) => {
-                        names = rules.axes().iter().map(|a| a.name.clone()).collect();
-                        sup.replace_rules(*rules, inputs);
-                        mine.diagnosis =
-                            Some("new safety rules installed: the drives are held until reset".into());
-                        mine.stops = sup.stops();
-                        dirty = true;
-                        tracing::warn!("juggler supervisor: new rules installed, drives stopped and held");
-                    }
-                    Err(e) => tracing::error!(error = %e, "new rules not installed"),
-                },
-            }
-        }
-        let event = match link.recv(&mut buf, Duration::from_millis(1)) {
-            Ok(Some((n, at))) => {
-                sup.on_frame(buf.get(..n).unwrap_or(&[]), at).or_else(|| sup.tick(Instant::now()))
-            }
-            Ok(None) => sup.tick(Instant::now()),
-            Err(e) => {
-                tracing::error!(error = %e, "juggler supervisor: link failed");
-                sup.stop_all();
-                break;
-            }
-        };
-        dirty |= event.is_some();
+    let result = sup.run(link, commands, stop, Duration::from_millis(1), |sup, event| {
         match event {
-            Some(OnlineEvent::Safe { .. }) => mine.safe_events += 1,
-            Some(OnlineEvent::Unsafe { diagnosis, .. }) => {
+            ServeEvent::Online(OnlineEvent::Safe { .. }) => mine.safe_events += 1,
+            ServeEvent::Online(OnlineEvent::Unsafe { diagnosis, .. }) => {
                 mine.unsafe_events += 1;
-                mine.diagnosis = Some(diagnosis);
+                mine.diagnosis = Some(diagnosis.clone());
             }
-            None => {}
-        }
-        if !dirty && last_publish.elapsed() < Duration::from_millis(10) {
-            continue;
-        }
-        mine.safe_to_run = sup.safe_to_run();
-        mine.held = sup.held();
-        mine.frames = sup.frames();
-        mine.stops = sup.stops();
-        mine.reaches = names.iter().cloned().zip(sup.supervisor().reaches().iter().copied()).collect();
-        mine.samples = names.iter().cloned().zip(sup.samples().iter().copied()).collect();
-        let published = match snapshot.try_lock() {
-            Ok(mut s) => {
-                s.clone_from(&mine);
-                true
+            ServeEvent::RulesInstalled => {
+                names = sup.supervisor().rules().axes().iter().map(|a| a.name.clone()).collect();
+                mine.diagnosis = Some("new safety rules installed: the drives are held until reset".into());
             }
-            Err(TryLockError::Poisoned(p)) => {
-                p.into_inner().clone_from(&mine);
-                true
+            ServeEvent::Integrity(_) | ServeEvent::Reset | ServeEvent::Stopped => {}
+            ServeEvent::Pass => {
+                if dirty || last_publish.elapsed() >= Duration::from_millis(10) {
+                    mine.safe_to_run = sup.safe_to_run();
+                    mine.held = sup.held();
+                    mine.integrity.clone_from(sup.integrity());
+                    mine.frames = sup.frames();
+                    mine.stops = sup.stops();
+                    mine.reaches =
+                        names.iter().cloned().zip(sup.supervisor().reaches().iter().copied()).collect();
+                    mine.samples = names.iter().cloned().zip(sup.samples().iter().copied()).collect();
+                    let published = match snapshot.try_lock() {
+                        Ok(mut s) => {
+                            s.clone_from(&mine);
+                            true
+                        }
+                        Err(TryLockError::Poisoned(p)) => {
+                            p.into_inner().clone_from(&mine);
+                            true
+                        }
+                        Err(TryLockError::WouldBlock) => false,
+                    };
+                    if published {
+                        last_publish = Instant::now();
+                    }
+                    dirty = !published;
+                }
+                return ControlFlow::Continue(());
             }
-            Err(TryLockError::WouldBlock) => false,
-        };
-        if published {
-            last_publish = Instant::now();
-            dirty = false;
-        } else {
-            dirty = true;
         }
+        dirty = true;
+        ControlFlow::Continue(())
+    });
+    if let Err(e) = result {
+        tracing::error!(error = %e, "juggler supervisor: link failed");
     }
     sup.stop_all();
 }

@@ -41,11 +41,13 @@ fn demo_cell(dir: &Path) -> motus_station::config::Cell {
     let examples = repo().join("crates/station/examples");
     let text = std::fs::read_to_string(examples.join("demo-cell.toml")).unwrap();
     let rules = repo().join("crates/safety/examples/juggler.toml").canonicalize().unwrap();
+    let drives = repo().join("crates/safety/examples/juggler-drives.toml").canonicalize().unwrap();
     let text = text
         .replace("/tmp/motus-demo/", &format!("{}/links/", dir.display()))
         .replace("127.0.0.1:29536", &format!("127.0.0.1:{}", free_tcp_port()))
         .replace("udp://127.0.0.1:24000", &format!("udp://127.0.0.1:{}", free_udp_block()))
         .replace("../../safety/examples/juggler.toml", &rules.display().to_string())
+        .replace("../../safety/examples/juggler-drives.toml", &drives.display().to_string())
         .replace("\"programs/", &format!("\"{}/programs/", examples.canonicalize().unwrap().display()));
     assert!(!text.contains("/tmp/motus-demo"));
     let path = dir.join("cell.toml");
@@ -133,13 +135,10 @@ fn demo_cell_runs_every_family_and_survives_a_killed_simulator() {
     std::fs::create_dir_all(&data).unwrap();
     let key = b"0123456789abcdef0123456789abcdef";
     std::fs::write(data.join("admin.key"), key).unwrap();
-    let set = motus_safety::RuleSet::from_toml(
-        &std::fs::read_to_string(repo().join("crates/safety/examples/juggler.toml")).unwrap(),
-    )
-    .unwrap();
-    let approval =
-        motus_safety::Approval::sign(&motus_safety::Snapshot::new(&set, &[]), "admin", "test", key).unwrap();
-    std::fs::write(data.join("juggler.approved"), approval.to_toml().unwrap()).unwrap();
+    let sup = cell.supervisor.as_ref().unwrap();
+    let (_, snapshot) = motus_safety::config_files::read_snapshot(&sup.rules, sup.drives.as_deref()).unwrap();
+    motus_safety::config_files::approve(&snapshot, "admin", "test", key, &data.join("juggler.approved"))
+        .unwrap();
     let t0 = Instant::now();
     loop {
         let s = juggler.snapshot();

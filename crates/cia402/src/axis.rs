@@ -7,7 +7,7 @@ use crate::settings::Profile;
 use motus_axis::{
     Axis, AxisCommand, AxisError, AxisFlags, AxisState, Capabilities, Fault, FaultKind, MotionProfile, Scale,
 };
-use motus_canopen_protocol::cia402::{sw, PowerState};
+use motus_cia402_protocol::{sw, PowerState};
 use std::time::Duration;
 
 /// A CiA 402 drive presented through [`Axis`]. Positions are SI through `scale` (raw unit

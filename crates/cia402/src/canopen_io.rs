@@ -12,7 +12,7 @@
 use crate::group::SyncTransport;
 use crate::io::{DriveIo, IoError};
 use motus_canopen::{Master, MasterError, NmtCommand, NmtState, PdoConfig, SdoError};
-use motus_canopen_protocol::cia402::index;
+use motus_cia402_protocol::index;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -167,7 +167,8 @@ impl CanopenDrive {
             return None;
         }
         let c = self.cache.lock().ok()?;
-        pick(&c).filter(|(_, at)| at.elapsed() <= self.max_age).map(|(v, _)| v)
+        let clock = self.master.clock();
+        pick(&c).filter(|(_, at)| clock.elapsed(*at) <= self.max_age).map(|(v, _)| v)
     }
 
     /// Declares that a SYNC producer runs (every few ms), so the position TPDO2 carries
@@ -185,6 +186,10 @@ impl CanopenDrive {
 impl DriveIo for CanopenDrive {
     fn node(&self) -> u8 {
         self.node
+    }
+
+    fn clock(&self) -> motus_clock::SharedClock {
+        std::sync::Arc::clone(self.master.clock())
     }
 
     fn read(&self, index: u16, sub: u8) -> Result<Vec<u8>, IoError> {

@@ -3,8 +3,9 @@
 use crate::error::DriveError;
 use crate::io::{fixed, DriveIo, IoError};
 use crate::settings::{DriveSettings, Profile};
-use motus_canopen_protocol::cia402::{cw, index, sw, DeviceCommand, HomingStatus, Mode, PowerState};
 use motus_canopen_protocol::SdoAbortCode;
+use motus_cia402_protocol::{cw, index, sw, DeviceCommand, HomingStatus, Mode, PowerState};
+use motus_clock::SharedClock;
 use std::time::{Duration, Instant};
 
 /// Whether a profile-position target is absolute or relative (controlword bit 6).
@@ -24,12 +25,22 @@ pub struct Drive<Io: DriveIo> {
     last_cw: u16,
     /// Software position limits (min, max) when known.
     limits: Option<(i32, i32)>,
+    /// The time of every wait (the clock of the object access, [`DriveIo::clock`]).
+    clock: SharedClock,
 }
 
 impl<Io: DriveIo> Drive<Io> {
-    /// A driver for the drive behind `io`.
+    /// A driver for the drive behind `io`. Its waits (enable, mode change, set-point
+    /// acknowledge, move, homing, fault reset) run on the clock of `io`
+    /// ([`DriveIo::clock`]): the system clock, or a virtual one in tests.
     pub fn new(io: Io, settings: DriveSettings) -> Self {
-        Self { io, settings, last_cw: 0, limits: None }
+        let clock = io.clock();
+        Self { io, settings, last_cw: 0, limits: None, clock }
+    }
+
+    /// The clock of this driver's waits.
+    pub fn clock(&self) -> &SharedClock {
+        &self.clock
     }
 
     /// The object access underneath.
@@ -79,7 +90,7 @@ impl<Io: DriveIo> Drive<Io> {
     /// (shutdown, switch on, enable operation). A drive in fault is not reset behind the
     /// caller's back: that returns [`DriveError::Fault`].
     pub fn enable(&mut self) -> Result<(), DriveError> {
-        let start = Instant::now();
+        let start = self.clock.now();
         let limit = self.settings.transition_timeout * 4;
         let mut last_sent: Option<(PowerState, Instant)> = None;
         loop {
@@ -96,24 +107,24 @@ impl<Io: DriveIo> Drive<Io> {
             if let Some(c) = command {
                 // Send once per state, again only if the drive ignores it for a while.
                 let resend = match last_sent {
-                    Some((s, at)) => s != state || at.elapsed() >= self.settings.transition_timeout,
+                    Some((s, at)) => s != state || self.clock.elapsed(at) >= self.settings.transition_timeout,
                     None => true,
                 };
                 if resend {
                     self.write_controlword(c.controlword())?;
-                    last_sent = Some((state, Instant::now()));
+                    last_sent = Some((state, self.clock.now()));
                 }
             }
-            if start.elapsed() > limit {
+            if self.clock.elapsed(start) > limit {
                 return Err(DriveError::StateTimeout {
                     node: self.node(),
                     state,
                     statusword: word,
                     target: PowerState::OperationEnabled,
-                    waited: start.elapsed(),
+                    waited: self.clock.elapsed(start),
                 });
             }
-            std::thread::sleep(self.settings.poll_interval);
+            self.clock.sleep(self.settings.poll_interval);
         }
     }
 
@@ -138,7 +149,7 @@ impl<Io: DriveIo> Drive<Io> {
     /// Waits for standstill after a halt: statusword bit 10 (with halt set it means
     /// "velocity 0") or a zero 0x606C reading. Fails on fault or time-out.
     pub fn wait_standstill(&self, timeout: Duration) -> Result<(), DriveError> {
-        let start = Instant::now();
+        let start = self.clock.now();
         loop {
             let (state, word) = self.state()?;
             if matches!(state, PowerState::Fault | PowerState::FaultReactionActive) {
@@ -147,21 +158,21 @@ impl<Io: DriveIo> Drive<Io> {
             if word & sw::TARGET_REACHED != 0 || self.velocity().ok() == Some(0) {
                 return Ok(());
             }
-            if start.elapsed() > timeout {
+            if self.clock.elapsed(start) > timeout {
                 return Err(DriveError::MotionTimeout {
                     node: self.node(),
                     what: "halt".into(),
                     statusword: word,
-                    waited: start.elapsed(),
+                    waited: self.clock.elapsed(start),
                 });
             }
-            std::thread::sleep(self.settings.poll_interval);
+            self.clock.sleep(self.settings.poll_interval);
         }
     }
 
     /// Waits until the drive is in `target`.
     pub fn wait_state(&self, target: PowerState) -> Result<(), DriveError> {
-        let start = Instant::now();
+        let start = self.clock.now();
         loop {
             let (state, word) = self.state()?;
             if state == target {
@@ -170,16 +181,16 @@ impl<Io: DriveIo> Drive<Io> {
             if state == PowerState::Fault && target != PowerState::Fault {
                 return Err(self.fault());
             }
-            if start.elapsed() > self.settings.transition_timeout {
+            if self.clock.elapsed(start) > self.settings.transition_timeout {
                 return Err(DriveError::StateTimeout {
                     node: self.node(),
                     state,
                     statusword: word,
                     target,
-                    waited: start.elapsed(),
+                    waited: self.clock.elapsed(start),
                 });
             }
-            std::thread::sleep(self.settings.poll_interval);
+            self.clock.sleep(self.settings.poll_interval);
         }
     }
 
@@ -193,18 +204,18 @@ impl<Io: DriveIo> Drive<Io> {
         }
         // A clean edge: bit 7 low first (with everything else off), then high.
         self.write_controlword(0x0000)?;
-        std::thread::sleep(self.settings.fault_reset_pulse);
+        self.clock.sleep(self.settings.fault_reset_pulse);
         self.write_controlword(cw::FAULT_RESET)?;
-        let start = Instant::now();
+        let start = self.clock.now();
         let result = loop {
             let (state, _) = self.state()?;
             if !matches!(state, PowerState::Fault | PowerState::FaultReactionActive) {
                 break Ok(());
             }
-            if start.elapsed() > self.settings.transition_timeout {
+            if self.clock.elapsed(start) > self.settings.transition_timeout {
                 break Err(DriveError::FaultPersists { node: self.node(), code: self.error_code() });
             }
-            std::thread::sleep(self.settings.poll_interval);
+            self.clock.sleep(self.settings.poll_interval);
         };
         // Bit 7 back low so the next reset is an edge again.
         self.write_controlword(0x0000)?;
@@ -251,16 +262,16 @@ impl<Io: DriveIo> Drive<Io> {
             }
         }
         self.io.write(index::MODES_OF_OPERATION, 0, &mode.to_i8().to_le_bytes())?;
-        let start = Instant::now();
+        let start = self.clock.now();
         loop {
             let displayed = self.mode_display()?;
             if displayed == mode {
                 return Ok(());
             }
-            if start.elapsed() > self.settings.transition_timeout {
+            if self.clock.elapsed(start) > self.settings.transition_timeout {
                 return Err(DriveError::ModeRefused { node: self.node(), wanted: mode, displayed });
             }
-            std::thread::sleep(self.settings.poll_interval);
+            self.clock.sleep(self.settings.poll_interval);
         }
     }
 
@@ -412,7 +423,7 @@ impl<Io: DriveIo> Drive<Io> {
     /// Polls the statusword until `word & mask == value`. Fails on fault, on a following
     /// error (bit 13 in profile position), or on time-out.
     fn wait_status(&self, mask: u16, value: u16, timeout: Duration, what: &str) -> Result<u16, DriveError> {
-        let start = Instant::now();
+        let start = self.clock.now();
         loop {
             let (state, word) = self.state()?;
             if matches!(state, PowerState::Fault | PowerState::FaultReactionActive) {
@@ -424,15 +435,15 @@ impl<Io: DriveIo> Drive<Io> {
             if word & mask == value {
                 return Ok(word);
             }
-            if start.elapsed() > timeout {
+            if self.clock.elapsed(start) > timeout {
                 return Err(DriveError::MotionTimeout {
                     node: self.node(),
                     what: what.into(),
                     statusword: word,
-                    waited: start.elapsed(),
+                    waited: self.clock.elapsed(start),
                 });
             }
-            std::thread::sleep(self.settings.poll_interval);
+            self.clock.sleep(self.settings.poll_interval);
         }
     }
 
@@ -452,7 +463,7 @@ impl<Io: DriveIo> Drive<Io> {
         self.io.write(index::HOMING_METHOD, 0, &method.to_le_bytes())?;
         self.write_controlword(0x000F)?;
         self.write_controlword(0x000F | cw::HOMING_START)?;
-        let start = Instant::now();
+        let start = self.clock.now();
         let result = loop {
             let (state, word) = self.state()?;
             if matches!(state, PowerState::Fault | PowerState::FaultReactionActive) {
@@ -465,15 +476,15 @@ impl<Io: DriveIo> Drive<Io> {
                 }
                 _ => {}
             }
-            if start.elapsed() > timeout {
+            if self.clock.elapsed(start) > timeout {
                 break Err(DriveError::MotionTimeout {
                     node: self.node(),
                     what: "homing".into(),
                     statusword: word,
-                    waited: start.elapsed(),
+                    waited: self.clock.elapsed(start),
                 });
             }
-            std::thread::sleep(self.settings.poll_interval);
+            self.clock.sleep(self.settings.poll_interval);
         };
         self.write_controlword(0x000F)?;
         result?;

@@ -1,7 +1,7 @@
 //! Errors of the CiA 402 driver.
 
 use crate::io::IoError;
-use motus_canopen_protocol::cia402::{Mode, PowerState};
+use motus_cia402_protocol::{Mode, PowerState};
 use std::time::Duration;
 
 /// Why a drive operation failed.

@@ -6,8 +6,8 @@
 //! 0x6040 per drive, costs more frames and does not start the drives together.
 
 use crate::io::IoError;
-use motus_canopen_protocol::cia402::cw;
 use motus_canopen_protocol::CanFrame;
+use motus_cia402_protocol::cw;
 
 /// Sends PDOs and SYNC on the bus (the CANopen master implements it).
 pub trait SyncTransport {

@@ -1,7 +1,8 @@
 //! How the driver reaches a drive's objects.
 
-use motus_canopen_protocol::cia402::index;
 use motus_canopen_protocol::SdoAbortCode;
+use motus_cia402_protocol::index;
+use motus_clock::{SharedClock, SystemClock};
 
 /// Why an object access failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -82,6 +83,11 @@ pub trait DriveIo: Send {
     fn position(&self) -> Result<i32, IoError> {
         let raw = self.read(index::POSITION_ACTUAL, 0)?;
         fixed::<4>(self.node(), index::POSITION_ACTUAL, 0, &raw).map(i32::from_le_bytes)
+    }
+    /// The clock of the transport (the system clock unless the transport runs on a
+    /// virtual one); [`crate::Drive`] waits on it.
+    fn clock(&self) -> SharedClock {
+        SystemClock::shared()
     }
 }
 

@@ -4,9 +4,9 @@
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use motus_axis::{Axis, AxisCommand, AxisError, MotionProfile, Scale, UnitKind};
-use motus_canopen_protocol::cia402::{next_state, DeviceCommand, PowerState};
 use motus_canopen_protocol::SdoAbortCode;
 use motus_cia402::{Cia402Axis, Drive, DriveError, DriveIo, DriveSettings, IoError, MoveKind, Profile};
+use motus_cia402_protocol::{next_state, DeviceCommand, PowerState};
 use std::sync::{Arc, Mutex};
 
 #[derive(Default)]
@@ -215,7 +215,7 @@ fn limits_and_modes_are_checked_before_anything_moves() {
     let writes_before = m.dev().writes.len();
     assert!(matches!(d.start_move(101, MoveKind::Absolute, true), Err(DriveError::BeyondLimit { .. })));
     assert_eq!(m.dev().writes.len(), writes_before, "nothing written for a refused target");
-    use motus_canopen_protocol::cia402::Mode;
+    use motus_cia402_protocol::Mode;
     assert!(matches!(d.set_mode(Mode::CyclicSyncPosition), Err(DriveError::ModeUnsupported { .. })));
 }
 

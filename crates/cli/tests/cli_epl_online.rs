@@ -219,3 +219,50 @@ fn online_supervisor_stops_a_student_program_and_blocks_on_an_unapproved_change(
         sup.wait_for(&["\"event\":\"integrity\"", "signature does not match"], Duration::from_secs(5));
     assert!(still.contains("\"ok\":false"), "{still}");
 }
+
+#[test]
+fn safety_run_watches_the_approved_drive_parameters() {
+    let dir = tempfile::tempdir().unwrap();
+    let rules = rules_1ms(dir.path());
+    let drives = dir.path().join("juggler-drives.toml");
+    let shipped = std::fs::read_to_string(root().join("crates/safety/examples/juggler-drives.toml")).unwrap();
+    std::fs::write(&drives, &shipped).unwrap();
+    let key = dir.path().join("admin.key");
+    std::fs::write(&key, "a-secret-administrator-key-0123456789\n").unwrap();
+    let approval = dir.path().join("juggler.approved");
+    let seg = format!("udp://127.0.0.1:{}", free_segment());
+    let s = |p: &Path| p.to_str().unwrap().to_owned();
+    let approve = || {
+        let o = Command::new(MOTUS)
+            .args(["safety", "approve", "--rules", &s(&rules), "--drives", &s(&drives)])
+            .args(["--key", &s(&key), "--admin", "alice", "--out", &s(&approval)])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    approve();
+    let sup = Lines::start(&[
+        "safety",
+        "run",
+        "--rules",
+        &s(&rules),
+        "--drives",
+        &s(&drives),
+        "--if",
+        &seg,
+        "--approval",
+        &s(&approval),
+        "--key",
+        &s(&key),
+    ]);
+    sup.wait_for(&["\"event\":\"integrity\"", "\"ok\":true"], Duration::from_secs(10));
+    // The thrower's quick-stop deceleration lowered on disk, without approval: named.
+    std::fs::write(&drives, shipped.replace("a_stop = 20000000.0", "a_stop = 15000000.0")).unwrap();
+    let blocked = sup.wait_for(&["\"event\":\"integrity\"", "\"ok\":false"], Duration::from_secs(10));
+    assert!(blocked.contains("drive[thrower].a_stop: 20000000.0 -> 15000000.0"), "{blocked}");
+    // The administrator approves the change (the approval names it): accepted again.
+    let stderr = approve();
+    assert!(stderr.contains("approving change: drive[thrower].a_stop: 20000000.0 -> 15000000.0"), "{stderr}");
+    sup.wait_for(&["\"event\":\"integrity\"", "\"ok\":true"], Duration::from_secs(10));
+}

@@ -2,7 +2,7 @@
 //! requested services (§4.2) and SDO command IDs (§3.6). All are total: unknown values are
 //! kept raw in an `Unknown` variant. In JSON they are the raw numbers.
 
-crate::code_table! {
+motus_wire::code_table! {
     /// NMT state byte (PRes, SoA, IdentResponse, StatusResponse). The wire carries only the low
     /// byte; the same value means CS_x or MS_x depending on the sender (§4.4).
     NmtState: u8 as "u8" {
@@ -33,7 +33,7 @@ crate::code_table! {
     }
 }
 
-crate::code_table! {
+motus_wire::code_table! {
     /// NMT command ID (ASnd NMTCommand byte 18, NMTRequest requested command) (§4.5).
     NmtCommandId: u8 as "u8" {
         /// 0x01 (NMTRequest only): please send an IdentResponse.
@@ -105,7 +105,7 @@ crate::code_table! {
     }
 }
 
-crate::code_table! {
+motus_wire::code_table! {
     /// SoA RequestedServiceID (§4.2). 0xA0..=0xFE are manufacturer-specific and decode as
     /// `Unknown` (see [`RequestedService::is_manufacturer_specific`]).
     RequestedService: u8 as "u8" {
@@ -131,7 +131,7 @@ impl RequestedService {
     }
 }
 
-crate::code_table! {
+motus_wire::code_table! {
     /// SDO command-layer command ID (§3.6, ASnd service 5, frame byte 25).
     SdoCommandId: u8 as "u8" {
         /// 0x00: no command (sequence-layer-only frames).

@@ -5,8 +5,8 @@
 
 use std::time::Instant;
 
-use motus_canopen_protocol::cia402::{index as ix, Mode};
 use motus_canopen_protocol::SdoAbortCode;
+use motus_cia402_protocol::{index as ix, Mode};
 
 use crate::drive::SimDrive;
 use crate::objects::SET_POSITION;
@@ -106,7 +106,7 @@ impl SimDrive {
         if !taken.is_empty() {
             tracing::debug!(node = ?self.node_id(), ?taken, state = %self.power.state(), "CiA 402 transition");
         }
-        let enabled = self.power.state() == motus_canopen_protocol::cia402::PowerState::OperationEnabled;
+        let enabled = self.power.state() == motus_cia402_protocol::PowerState::OperationEnabled;
         let p = self.params();
         self.motion.on_controlword(word, self.mode, &p, &mut self.motor, enabled);
     }

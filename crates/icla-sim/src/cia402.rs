@@ -1,12 +1,12 @@
 //! Device side of the CiA 402 power drive system state machine (specs/canopen.md 2.2-2.5):
-//! commands decoded from the controlword with `motus_canopen_protocol::cia402`, transitions
+//! commands decoded from the controlword with `motus_cia402_protocol`, transitions
 //! 0-16, the fault reset on a 0 -> 1 edge of bit 7 (only when the cause is gone), the quick
 //! stop option code 0x605A, the shutdown / disable operation option codes 0x605B / 0x605C
 //! (0 = power off at once, 1 = ramp down with the profile deceleration) and the fault
 //! reaction option code 0x605E (0 = power off, 1 = profile deceleration, 2-4 = quick stop
 //! deceleration).
 
-use motus_canopen_protocol::cia402::{cw, next_state, DeviceCommand, PowerState};
+use motus_cia402_protocol::{cw, next_state, DeviceCommand, PowerState};
 
 use crate::motion::Regime;
 

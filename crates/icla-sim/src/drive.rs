@@ -4,9 +4,9 @@
 
 use std::time::{Duration, Instant};
 
-use motus_canopen_protocol::cia402::{index as ix, sw, Mode, PowerState};
 use motus_canopen_protocol::message::{LSS_MASTER_TO_SLAVE, LSS_SLAVE_TO_MASTER};
 use motus_canopen_protocol::{CanFrame, LssRequest, NmtCommand, NmtState};
+use motus_cia402_protocol::{index as ix, sw, Mode, PowerState};
 
 use crate::cia402::{Options, Power};
 use crate::config::{SimConfig, UNCONFIGURED};

@@ -7,6 +7,8 @@
 //! * [`SimDrive`]: one node, sans-IO: [`SimDrive::handle`] a received frame,
 //!   [`SimDrive::poll`] the timers; both take `now` and return the frames to send.
 //! * [`run`] / [`run_shared`]: serve several nodes on one [`motus_can::CanBus`].
+//! * [`pair()`]: the nodes as the in-process peer of a [`motus_can::PairBus`], answering
+//!   synchronously on a [`motus_clock::Clock`] (driver-versus-simulator tests on virtual time).
 //! * [`eds::export`]: the dictionary as an EDS that python-canopen imports.
 //!
 //! Defaults (see [`objects`] for the dictionary and the PDO set): node id 127 (or
@@ -27,6 +29,7 @@ pub mod motor;
 pub mod nmt;
 pub mod objects;
 pub mod od;
+pub mod pair;
 pub mod pdo;
 pub mod runtime;
 pub mod sdo_server;
@@ -34,4 +37,5 @@ pub mod sdo_server;
 pub use access::HOMING_METHODS;
 pub use config::{parse_nodes, Identity, SimConfig};
 pub use drive::SimDrive;
+pub use pair::pair;
 pub use runtime::{lock, run, run_shared, SharedDrives};

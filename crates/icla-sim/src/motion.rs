@@ -8,7 +8,7 @@
 //! Relative targets (CW bit 6) are relative to the previous target position (to the actual
 //! position after the power stage was off).
 
-use motus_canopen_protocol::cia402::{cw, sw, HomingStatus, Mode};
+use motus_cia402_protocol::{cw, sw, HomingStatus, Mode};
 
 use crate::motor::Motor;
 

@@ -4,8 +4,8 @@
 
 use std::time::{Duration, Instant};
 
-use motus_canopen_protocol::cia402::PowerState;
 use motus_canopen_protocol::{CanFrame, NmtState};
+use motus_cia402_protocol::PowerState;
 use motus_icla_sim::{SimConfig, SimDrive};
 
 /// A drive with a hand-driven clock.

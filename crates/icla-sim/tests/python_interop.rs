@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use motus_can::socketcand::{Hub, HubConfig, SocketcandBus};
 use motus_can::CanBus;
-use motus_canopen_protocol::cia402::PowerState;
+use motus_cia402_protocol::PowerState;
 use motus_icla_sim::{lock, run_shared, SharedDrives, SimConfig, SimDrive};
 
 struct Sim {

@@ -6,8 +6,8 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use motus_kv01_protocol::{
-    decode_message, Address, Command, CrcMode, Direction, JointStatus, Message, ReplyBody, ResolverReading,
-    StreamDecoder,
+    decode_message, Address, Command, CrcMode, Direction, JointStatus, Message, MessageScanner, ReplyBody,
+    ResolverReading, StreamDecoder,
 };
 
 fn messages() -> (Message, Message) {
@@ -38,7 +38,7 @@ fn codec(c: &mut Criterion) {
     g.bench_function("decode_d3_reply", |b| {
         b.iter(|| decode_message(black_box(&d3_bytes), Direction::FromModule, CrcMode::Strict).unwrap())
     });
-    let mut stream = StreamDecoder::replies(CrcMode::Strict);
+    let mut stream = StreamDecoder::new(MessageScanner::replies(CrcMode::Strict));
     g.bench_function("stream_d3_reply", |b| {
         b.iter(|| {
             stream.push(black_box(&d3_bytes));

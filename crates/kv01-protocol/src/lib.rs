@@ -7,7 +7,9 @@
 //! - Typed messages: [`Message`] = [`Request`] (host -> module, [`Command`] D0..D5) or
 //!   [`Reply`] (module -> host, [`ReplyBody`]).
 //! - One-shot: [`decode_message`] / [`encode_message`] / [`Message::encode_into`].
-//! - Streaming: [`StreamDecoder`] (resynchronises after garbage, counts CRC failures).
+//! - Streaming: [`MessageScanner`] finds a message at the start of received bytes (for the
+//!   serial bus master), [`StreamDecoder`] resynchronises after garbage over it and counts
+//!   CRC failures.
 //! - CRC checking is [`CrcMode::Strict`] by default; [`CrcMode::Lenient`] accepts a bad CRC
 //!   and reports it, because the source's own example messages do not carry the CRC its
 //!   published procedure gives.
@@ -41,9 +43,10 @@ pub use error::{DecodeError, EncodeError};
 pub use message::{
     decode_message, encode_message, guess_direction, CrcMismatch, CrcMode, Decoded, Direction, Message,
 };
+pub use motus_wire::StreamStats;
 pub use reply::{Answer, Reply, ReplyBody, ShortCode};
 pub use status::{GripperLoad, GripperStatus, JointStatus, ResolverReading, Voltages};
-pub use stream::{StreamDecoder, StreamEvent, StreamStats};
+pub use stream::{CrcFailure, MessageScanner, StreamDecoder, StreamEvent};
 
 /// The END byte of every message.
 pub const END: u8 = 0xF0;

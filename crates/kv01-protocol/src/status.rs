@@ -121,6 +121,27 @@ impl ResolverReading {
     }
 }
 
+/// `deg` normalised to (-180, 180].
+#[must_use]
+pub fn normalise_deg(deg: f64) -> f64 {
+    let r = deg.rem_euclid(360.0);
+    if r > 180.0 {
+        r - 360.0
+    } else {
+        r
+    }
+}
+
+/// The joint angle of a raw resolver reading (`specs/kv01.md`, D3 and "Joint offsets and
+/// soft limits": the module reports `joint angle + offset` without correction):
+/// `raw * 360 / 2^bits - offset_deg`, normalised to (-180, 180]. `bits` is 16 on joints 1-5
+/// and 12 on the gripper.
+#[must_use]
+pub fn joint_angle_deg(raw: u16, offset_deg: f64, bits: u8) -> f64 {
+    let per_turn = f64::from(1u32 << bits.min(16));
+    normalise_deg(f64::from(raw) * 360.0 / per_turn - offset_deg)
+}
+
 /// Volts per count of the 24 V measurement.
 pub const VOLTS_PER_COUNT_24V: f64 = 0.027_402_343_75;
 /// Volts per count of the 12 V measurement.

@@ -172,7 +172,7 @@ proptest! {
             want.push(bytes.clone());
         }
         all.extend_from_slice(&tail);
-        let mut dec = StreamDecoder::new(Direction::Auto, CrcMode::Strict);
+        let mut dec = StreamDecoder::new(MessageScanner::new(Direction::Auto, CrcMode::Strict));
         let mut got = Vec::new();
         let mut rest = &all[..];
         for c in cuts.iter().cycle() {
@@ -188,7 +188,7 @@ proptest! {
         while let Some(ev) = dec.next_event() {
             if let StreamEvent::Frame(d) = ev { got.push(d.message.encode().unwrap()); }
         }
-        prop_assert_eq!(dec.buffered(), 0);
+        prop_assert_eq!(dec.pending(), 0);
         // Garbage may contain chance frames (an 8-bit CRC and no unique start byte make
         // that a 1-in-256 event per candidate), and a chance frame that starts in the
         // garbage may be long (module replies are length-delimited and may carry 0xF0)
@@ -230,7 +230,7 @@ proptest! {
             all.extend_from_slice(&bytes);
             want.push(m);
         }
-        let mut dec = StreamDecoder::replies(CrcMode::Lenient);
+        let mut dec = StreamDecoder::new(MessageScanner::replies(CrcMode::Lenient));
         let mut got = Vec::new();
         for c in all.chunks(chunk) {
             dec.push(c);
@@ -252,7 +252,7 @@ proptest! {
             all.extend_from_slice(&bytes);
             want.push(m);
         }
-        let mut dec = StreamDecoder::requests(CrcMode::Strict);
+        let mut dec = StreamDecoder::new(MessageScanner::requests(CrcMode::Strict));
         dec.push(&all);
         dec.flush();
         let got: Vec<Message> = std::iter::from_fn(|| dec.next_frame()).map(|d| d.message).collect();
@@ -270,14 +270,14 @@ proptest! {
     ) {
         let dir = [Direction::ToModule, Direction::FromModule, Direction::Auto][usize::from(dir)];
         let mode = if lenient { CrcMode::Lenient } else { CrcMode::Strict };
-        let mut dec = StreamDecoder::new(dir, mode);
+        let mut dec = StreamDecoder::new(MessageScanner::new(dir, mode));
         for c in &chunks {
             dec.push(c);
             for _ in dec.by_ref() {}
         }
         dec.flush();
         for _ in dec.by_ref() {}
-        prop_assert_eq!(dec.buffered(), 0);
+        prop_assert_eq!(dec.pending(), 0);
     }
 
     #[test]

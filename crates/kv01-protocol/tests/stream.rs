@@ -19,7 +19,7 @@ fn is_frame(e: &StreamEvent) -> bool {
 
 #[test]
 fn byte_by_byte() {
-    let mut dec = StreamDecoder::replies(CrcMode::Strict);
+    let mut dec = StreamDecoder::new(MessageScanner::replies(CrcMode::Strict));
     let mut frames = 0;
     for b in OK.iter().chain(&UC).chain(&D3) {
         dec.push(&[*b]);
@@ -27,12 +27,12 @@ fn byte_by_byte() {
     }
     assert_eq!(frames, 3);
     assert_eq!(dec.stats().frames, 3);
-    assert_eq!(dec.buffered(), 0);
+    assert_eq!(dec.pending(), 0);
 }
 
 #[test]
 fn garbage_is_reported_before_the_next_frame() {
-    let mut dec = StreamDecoder::replies(CrcMode::Strict);
+    let mut dec = StreamDecoder::new(MessageScanner::replies(CrcMode::Strict));
     dec.push(&[0x00, 0x11, 0xF0]);
     dec.push(&OK);
     let ev = events(&mut dec);
@@ -45,21 +45,21 @@ fn garbage_is_reported_before_the_next_frame() {
 #[test]
 fn long_length_garbage_waits_until_flush() {
     // E2 FF looks like the start of a 255-byte message.
-    let mut dec = StreamDecoder::replies(CrcMode::Strict);
+    let mut dec = StreamDecoder::new(MessageScanner::replies(CrcMode::Strict));
     dec.push(&[0xE2, 0xFF]);
     dec.push(&D3);
     assert_eq!(events(&mut dec), vec![]);
-    assert_eq!(dec.buffered(), 10);
+    assert_eq!(dec.pending(), 10);
     dec.flush();
     let ev = events(&mut dec);
     assert_eq!(ev[0], StreamEvent::Garbage { bytes: 2 });
     assert!(is_frame(&ev[1]));
-    assert_eq!(dec.buffered(), 0);
+    assert_eq!(dec.pending(), 0);
 }
 
 #[test]
 fn partial_frame_is_dropped_by_flush_only() {
-    let mut dec = StreamDecoder::replies(CrcMode::Strict);
+    let mut dec = StreamDecoder::new(MessageScanner::replies(CrcMode::Strict));
     dec.push(&D3[..5]);
     assert_eq!(events(&mut dec), vec![]);
     dec.push(&D3[5..]);
@@ -73,28 +73,28 @@ fn partial_frame_is_dropped_by_flush_only() {
 fn crc_failure_is_counted_and_resynchronised() {
     let mut bad = OK;
     bad[3] = b'X'; // "XK": the CRC 0x23 no longer fits.
-    let mut dec = StreamDecoder::replies(CrcMode::Strict);
+    let mut dec = StreamDecoder::new(MessageScanner::replies(CrcMode::Strict));
     dec.push(&bad);
     dec.push(&D3);
     let ev = events(&mut dec);
     assert!(
-        matches!(ev[0], StreamEvent::CrcFailure { address: 0xE2, mismatch } if mismatch.received == 0x23)
+        matches!(ev[0], StreamEvent::Corrupt(CrcFailure { address: 0xE2, mismatch }) if mismatch.received == 0x23)
     );
     assert_eq!(ev[1], StreamEvent::Garbage { bytes: 7 });
     assert!(is_frame(&ev[2]));
-    assert_eq!(dec.stats().crc_failures, 1);
+    assert_eq!(dec.stats().corrupt_frames, 1);
     // Lenient: accepted, with the mismatch reported.
-    let mut dec = StreamDecoder::replies(CrcMode::Lenient);
+    let mut dec = StreamDecoder::new(MessageScanner::replies(CrcMode::Lenient));
     dec.push(&bad);
     let d = dec.next_frame().unwrap();
     assert_eq!(d.crc_mismatch.map(|m| m.received), Some(0x23));
-    assert_eq!(dec.stats().crc_mismatches_accepted, 1);
+    assert_eq!((dec.stats().frames, dec.stats().corrupt_frames), (1, 0));
 }
 
 #[test]
 fn request_stream_rejects_f0_early_and_ignores_short_form() {
     // E2 06 D1 F0 ..: 0xF0 at offset 3 of a host message, dropped before LENGTH bytes came.
-    let mut dec = StreamDecoder::requests(CrcMode::Strict);
+    let mut dec = StreamDecoder::new(MessageScanner::requests(CrcMode::Strict));
     dec.push(&[0xE2, 0x06, 0xD1, 0xF0]);
     dec.push(&UC);
     dec.push(&[0xE2, 0x07, 0xD0, 0x45, 0x4E, 0xFB, 0xF0]);
@@ -105,4 +105,17 @@ fn request_stream_rejects_f0_early_and_ignores_short_form() {
         Message::request(Address::joint(2).unwrap(), Command::Faulhaber { text: "EN".into() })
     );
     assert_eq!(dec.stats().garbage_bytes, 8);
+}
+
+#[test]
+fn the_reply_scanner_finds_one_reply_at_the_start_of_a_buffer() {
+    use motus_wire::{Scan, Scanner};
+    let strict = MessageScanner::replies(CrcMode::Strict);
+    assert!(matches!(strict.scan(&UC), Scan::Frame { len: 4, .. }));
+    assert_eq!(strict.scan(&[0x00, 0xE2]), Scan::Skip);
+    assert_eq!(strict.scan(&UC[..2]), Scan::Incomplete);
+    // The source's example reply fails the published CRC: corrupt in strict mode.
+    let example = [0xE2, 0x07, 0xD0, 0x4F, 0x4B, 0xB5, 0xF0];
+    assert!(matches!(strict.scan(&example), Scan::Corrupt(CrcFailure { address: 0xE2, .. })));
+    assert!(matches!(MessageScanner::replies(CrcMode::Lenient).scan(&example), Scan::Frame { len: 7, .. }));
 }

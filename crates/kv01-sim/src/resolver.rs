@@ -13,23 +13,10 @@ pub fn raw_from_angle(angle_deg: f64, offset_deg: f64, bits: u8) -> u16 {
     counts as u16
 }
 
-/// The joint angle of a raw reading (the spec's formula), normalised to (-180, 180].
-#[must_use]
-pub fn angle_from_raw(raw: u16, offset_deg: f64, bits: u8) -> f64 {
-    let per_turn = f64::from(1u32 << bits.min(16));
-    normalise_deg(f64::from(raw) * 360.0 / per_turn - offset_deg)
-}
-
-/// `deg` normalised to (-180, 180].
-#[must_use]
-pub fn normalise_deg(deg: f64) -> f64 {
-    let r = deg.rem_euclid(360.0);
-    if r > 180.0 {
-        r - 360.0
-    } else {
-        r
-    }
-}
+/// The joint angle of a raw reading (the spec's formula, in the codec), normalised to
+/// (-180, 180].
+pub use motus_kv01_protocol::status::joint_angle_deg as angle_from_raw;
+pub use motus_kv01_protocol::status::normalise_deg;
 
 #[cfg(test)]
 mod tests {

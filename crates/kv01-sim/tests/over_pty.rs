@@ -5,82 +5,48 @@
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use motus_kv01_protocol::{
-    crc, Address, Answer, Command, CrcMode, D1Action, Message, Reply, ReplyBody, ShortCode, StreamDecoder,
+    crc, Address, Answer, Command, CrcMode, D1Action, Message, MessageScanner, Reply, ReplyBody, ShortCode,
 };
 use motus_kv01_sim::{lock, LineOptions, SharedArm, Side, SimLine};
-use motus_serial::{FaultConfig, LineSettings, Link, PtyLink, SerialLink};
+use motus_serial::{FaultConfig, FramedLink, LineSettings, PtyLink, SerialLink, ServeThread};
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 struct Sim {
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<SimLine>>,
+    line: ServeThread<SimLine>,
     arm: SharedArm,
 }
 
 impl Sim {
     fn start(path: &Path, baud: u32, options: LineOptions) -> Sim {
         let pty = PtyLink::create(Some(path), LineSettings::n81(baud)).unwrap();
-        let mut line = SimLine::new(Box::new(pty), options).unwrap();
+        let line = SimLine::new(Box::new(pty), options).unwrap();
         let arm = line.arm();
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || {
-            line.run(&flag).unwrap();
-            line
-        });
-        Sim { stop, thread: Some(thread), arm }
+        Sim { line: ServeThread::spawn("kv01-sim", line, SimLine::run).unwrap(), arm }
     }
 
-    fn stop(mut self) -> SimLine {
-        self.stop.store(true, Ordering::Relaxed);
-        self.thread.take().unwrap().join().unwrap()
+    fn stop(self) -> SimLine {
+        self.line.stop().unwrap()
     }
 }
 
-impl Drop for Sim {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-struct Host {
-    link: SerialLink,
-    decoder: StreamDecoder,
-}
+/// The host side: replies read with the codec's stream decoder.
+struct Host(FramedLink<MessageScanner>);
 
 impl Host {
     fn open(path: &Path, baud: u32) -> Host {
-        Host {
-            link: SerialLink::open(path.to_str().unwrap(), baud).unwrap(),
-            decoder: StreamDecoder::replies(CrcMode::Strict),
-        }
+        let link = SerialLink::open(path.to_str().unwrap(), baud).unwrap();
+        Host(FramedLink::new(Box::new(link), MessageScanner::replies(CrcMode::Strict)))
     }
 
     fn send_raw(&mut self, bytes: &[u8]) {
-        self.link.write_all(bytes).unwrap();
+        self.0.send(bytes).unwrap();
     }
 
     fn receive(&mut self, timeout: Duration) -> Option<Reply> {
-        let deadline = Instant::now() + timeout;
-        let mut buf = [0u8; 256];
-        loop {
-            if let Some(d) = self.decoder.next_frame() {
-                let Message::Reply(r) = d.message else { panic!("not a reply: {d:?}") };
-                return Some(r);
-            }
-            let left = deadline.saturating_duration_since(Instant::now());
-            if left.is_zero() {
-                return None;
-            }
-            let n = self.link.read(&mut buf, left).unwrap();
-            self.decoder.push(&buf[..n]);
+        match self.0.receive(timeout).unwrap()?.message {
+            Message::Reply(r) => Some(r),
+            other => panic!("not a reply: {other:?}"),
         }
     }
 
@@ -139,9 +105,9 @@ fn all_six_modules_answer_and_a_wrong_address_stays_silent() {
     std::thread::sleep(Duration::from_millis(20));
     assert!(matches!(host.body(3, Command::ReadResolver), ReplyBody::Resolver(_)));
     let line = sim.stop();
-    assert_eq!(line.frames_served(), 11);
-    let stats = line.decoder_stats();
-    assert!(stats.crc_failures >= 1 && stats.garbage_bytes >= 4, "{stats:?}");
+    assert_eq!(line.server().frames_served(), 11);
+    let stats = line.server().decoder_stats();
+    assert!(stats.corrupt_frames >= 1 && stats.garbage_bytes >= 4, "{stats:?}");
 }
 
 #[test]
@@ -206,7 +172,7 @@ fn dropped_replies_follow_the_seeded_rate() {
         .count();
     assert!((8..=32).contains(&answered), "{answered} of 40");
     let line = sim.stop();
-    assert_eq!(line.frames_served(), 40, "every request was decoded and answered (then dropped)");
+    assert_eq!(line.server().frames_served(), 40, "every request was decoded and answered (then dropped)");
 }
 
 #[test]

@@ -7,16 +7,15 @@ use criterion::{Criterion, Throughput};
 use motus_kv01::Kv01Bus;
 use motus_kv01_protocol::{Address, Command, CrcMode, Message};
 use motus_kv01_sim::{LineOptions, SimLine};
-use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink};
-use std::sync::atomic::{AtomicBool, Ordering};
+use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink, ServeThread};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 struct Rig {
+    /// Stops serving first (dropped first), before the folder of its pty goes.
+    _line: ServeThread<SimLine>,
     _dir: tempfile::TempDir,
     bus: Kv01Bus,
-    stop: Arc<AtomicBool>,
-    thread: Option<std::thread::JoinHandle<()>>,
 }
 
 impl Rig {
@@ -24,25 +23,13 @@ impl Rig {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("arm");
         let pty = PtyLink::create(Some(&path), LineSettings::n81(115_200)).unwrap();
-        let mut line =
-            SimLine::new(Box::new(pty), LineOptions { baud_pacing: pacing, ..LineOptions::default() })
-                .unwrap();
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || line.run(&flag).unwrap());
+        let line = SimLine::new(Box::new(pty), LineOptions { baud_pacing: pacing, ..LineOptions::default() })
+            .unwrap();
+        let line = ServeThread::spawn("kv01-sim", line, SimLine::run).unwrap();
         let link = SerialLink::open(path.to_str().unwrap(), 115_200).unwrap();
         let bus =
             Kv01Bus::new(Arc::new(BusMaster::new(Box::new(link), BusConfig::default())), CrcMode::Strict);
-        Rig { _dir: dir, bus, stop, thread: Some(thread) }
-    }
-}
-
-impl Drop for Rig {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
+        Rig { _dir: dir, bus, _line: line }
     }
 }
 

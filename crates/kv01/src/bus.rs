@@ -1,8 +1,7 @@
 //! KV-01 transactions on a shared bus master, with the module's own refusals typed.
 
-use crate::framing::scan_reply;
 use motus_kv01_protocol::{
-    Address, Command, CrcMode, Decoded, EncodeError, Message, Reply, ReplyBody, ShortCode,
+    Address, Command, CrcMode, Decoded, EncodeError, Message, MessageScanner, Reply, ReplyBody, ShortCode,
 };
 use motus_serial::{BusError, BusMaster, Request};
 use std::sync::Arc;
@@ -63,10 +62,9 @@ impl Kv01Bus {
         let len = msg.encode_into(&mut buf)?;
         let bytes = buf.get(..len).unwrap_or(&[]);
         let request = Request { device: u32::from(addr.raw()), bytes, reply_len: 8, idempotent: true };
-        let crc = self.crc;
         let decoded: Decoded = self.master.transact(
             &request,
-            &|b: &[u8]| scan_reply(b, crc),
+            &MessageScanner::replies(self.crc),
             |d: &Decoded| matches!(&d.message, Message::Reply(Reply { address, .. }) if *address == addr),
         )?;
         if let Some(m) = decoded.crc_mismatch {

@@ -5,6 +5,8 @@
 //! raw * 360 / 65536 - offset, normalised to (-180, 180]. The offsets depend on how each
 //! resolver was mounted and change after service: they are configuration.
 
+use motus_kv01_protocol::status::joint_angle_deg;
+pub use motus_kv01_protocol::status::normalise_deg;
 use serde::{Deserialize, Serialize};
 
 /// Offsets in degrees of joints 1..6 (spec table, measured with the arm forward and raised).
@@ -57,8 +59,7 @@ impl JointSpec {
 
     /// Joint angle in degrees, normalised to (-180, 180], from a raw resolver value.
     pub fn angle_deg(&self, raw: u16) -> f64 {
-        let counts = f64::from(1u32 << self.resolver_bits.min(16));
-        normalise_deg(f64::from(raw) * 360.0 / counts - self.offset_deg)
+        joint_angle_deg(raw, self.offset_deg, self.resolver_bits)
     }
 
     /// Joint deg/s for one motor rpm (sign included).
@@ -79,16 +80,6 @@ impl JointSpec {
     /// True if `angle` lies within the soft limits (always for endless joints).
     pub fn within_soft_limits(&self, angle: f64) -> bool {
         self.soft_limits_deg.is_none_or(|(lo, hi)| (lo..=hi).contains(&angle))
-    }
-}
-
-/// Normalises an angle to (-180, 180].
-pub fn normalise_deg(a: f64) -> f64 {
-    let r = a.rem_euclid(360.0);
-    if r > 180.0 {
-        r - 360.0
-    } else {
-        r
     }
 }
 

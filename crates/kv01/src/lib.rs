@@ -15,13 +15,11 @@ mod arm;
 mod axis;
 mod bus;
 mod controller;
-mod framing;
 mod joints;
 mod recover;
 
 pub use arm::{ArmConfig, ArmError, JointState, Kv01Arm, LatchedTimeout};
 pub use axis::Kv01JointAxis;
 pub use bus::{Kv01Bus, Kv01Error};
-pub use framing::scan_reply;
 pub use joints::{normalise_deg, JointSpec, SPEC_OFFSETS_DEG, SPEC_SOFT_LIMITS_DEG};
 pub use recover::{RECOVERY_RPM, WRONG_WAY_TOLERANCE_DEG};

@@ -5,7 +5,7 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use motus_mouse_protocol::{ConverterPacket, ConverterStream, MicrosoftPacket, MicrosoftStream};
+use motus_mouse_protocol::{ConverterPacket, MicrosoftPacket, Packet, PacketScanner, Stream};
 
 fn converter_bytes() -> Vec<u8> {
     let mut bytes = Vec::new();
@@ -18,36 +18,31 @@ fn converter_bytes() -> Vec<u8> {
     bytes
 }
 
+/// Decodes `bytes` in 64-byte chunks and sums the packets' `dx`.
+fn sum_dx<P: Packet>(bytes: &[u8], dx: fn(&P) -> i64) -> i64 {
+    let mut s = Stream::<PacketScanner<P>>::default();
+    let mut sum = 0i64;
+    for chunk in bytes.chunks(64) {
+        s.push(black_box(chunk));
+        while let Some(p) = s.next_frame() {
+            sum += dx(&p);
+        }
+    }
+    sum
+}
+
 fn streams(c: &mut Criterion) {
     let conv = converter_bytes();
     let mut g = c.benchmark_group("mouse_stream");
     g.throughput(Throughput::Bytes(conv.len() as u64));
-    g.bench_function("converter", |b| {
-        b.iter(|| {
-            let mut s = ConverterStream::new();
-            let mut sum = 0i64;
-            for chunk in conv.chunks(64) {
-                s.push_with(black_box(chunk), |p| sum += i64::from(p.dx));
-            }
-            black_box(sum)
-        })
-    });
+    g.bench_function("converter", |b| b.iter(|| black_box(sum_dx(&conv, |p: &ConverterPacket| p.dx.into()))));
     let ms: Vec<u8> = (0..2000i32)
         .flat_map(|i| {
             MicrosoftPacket { left: i % 2 == 0, right: false, dx: (i % 100) as i8, dy: -3 }.encode()
         })
         .collect();
     g.throughput(Throughput::Bytes(ms.len() as u64));
-    g.bench_function("microsoft", |b| {
-        b.iter(|| {
-            let mut s = MicrosoftStream::new();
-            let mut sum = 0i64;
-            for chunk in ms.chunks(64) {
-                s.push_with(black_box(chunk), |p| sum += i64::from(p.dx));
-            }
-            black_box(sum)
-        })
-    });
+    g.bench_function("microsoft", |b| b.iter(|| black_box(sum_dx(&ms, |p: &MicrosoftPacket| p.dx.into()))));
     g.finish();
 }
 

@@ -24,7 +24,9 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::PacketError;
-use crate::scan::{ScanBuffer, StreamStats};
+use motus_wire::Stream;
+
+use crate::scan::PacketScanner;
 
 /// Bytes in one converter packet.
 pub const PACKET_LEN: usize = 7;
@@ -145,69 +147,11 @@ impl ConverterPacket {
     }
 }
 
-/// Streaming decoder for the converter's byte stream (bytes pushed in arbitrary chunks).
-#[derive(Debug, Clone, Default)]
-pub struct ConverterStream {
-    scan: ScanBuffer,
-}
-
-impl ConverterStream {
-    /// An empty decoder.
-    #[must_use]
-    pub fn new() -> ConverterStream {
-        ConverterStream::default()
-    }
-
-    /// Pushes received bytes; calls `on_packet` for every packet completed, in order.
-    pub fn push_with(&mut self, bytes: &[u8], mut on_packet: impl FnMut(ConverterPacket)) {
-        self.scan.extend(bytes);
-        loop {
-            let rest = self.scan.rest();
-            let Some(i) = rest.iter().position(|&b| b == START) else {
-                let n = rest.len();
-                self.scan.skip_garbage(n);
-                break;
-            };
-            self.scan.skip_garbage(i);
-            let Some(candidate) = self.scan.rest().get(..PACKET_LEN) else {
-                break;
-            };
-            match ConverterPacket::decode(candidate) {
-                Ok(p) => {
-                    self.scan.take_packet(PACKET_LEN);
-                    on_packet(p);
-                }
-                // A false start: drop its 'a' only and look again from the next byte.
-                Err(_) => self.scan.skip_garbage(1),
-            }
-        }
-        self.scan.compact();
-    }
-
-    /// Pushes received bytes and returns the packets completed.
-    pub fn push(&mut self, bytes: &[u8]) -> Vec<ConverterPacket> {
-        let mut out = Vec::new();
-        self.push_with(bytes, |p| out.push(p));
-        out
-    }
-
-    /// Bytes of an incomplete candidate kept for the next push (at most 6).
-    #[must_use]
-    pub fn pending(&self) -> usize {
-        self.scan.pending()
-    }
-
-    /// Drops an incomplete candidate (e.g. after a line time-out), counting it as garbage.
-    pub fn flush(&mut self) {
-        self.scan.flush();
-    }
-
-    /// Totals since creation.
-    #[must_use]
-    pub fn stats(&self) -> StreamStats {
-        self.scan.stats
-    }
-}
+/// Streaming decoder for the converter's byte stream (bytes pushed in arbitrary chunks;
+/// `ConverterStream::default()`): a false start drops its `'a'` only. At most 6 bytes of an
+/// incomplete candidate are pending; [`motus_wire::Stream::clear`] drops them (e.g. after
+/// a line time-out), counted as garbage.
+pub type ConverterStream = Stream<PacketScanner<ConverterPacket>>;
 
 #[cfg(test)]
 mod tests {
@@ -259,15 +203,16 @@ mod tests {
         let mut bytes = vec![0x00, 0x13, b'a', 0x55];
         bytes.extend_from_slice(&good);
         bytes.extend_from_slice(b"aa");
-        let mut s = ConverterStream::new();
+        let mut s = ConverterStream::default();
         let mut got = Vec::new();
         for chunk in bytes.chunks(3) {
-            got.extend(s.push(chunk));
+            s.push(chunk);
+            got.extend(std::iter::from_fn(|| s.next_frame()));
         }
         assert_eq!(got, vec![ConverterPacket::motion(3, -4)]);
-        assert_eq!(s.stats(), StreamStats { packets: 1, garbage_bytes: 4 });
+        assert_eq!((s.stats().frames, s.stats().garbage_bytes), (1, 4));
         assert_eq!(s.pending(), 2);
-        s.flush();
+        s.clear();
         assert_eq!(s.stats().garbage_bytes, 6);
     }
 
@@ -275,9 +220,10 @@ mod tests {
     fn counts_containing_start_and_end_bytes() {
         // dx = 0x7861 has X1 = 'a' and X2 = 'x'; dy = 0x6178 likewise.
         let p = ConverterPacket::motion(0x7861, 0x6178);
-        let mut s = ConverterStream::new();
+        let mut s = ConverterStream::default();
         let mut bytes = p.encode().to_vec();
         bytes.extend_from_slice(&p.encode());
-        assert_eq!(s.push(&bytes), vec![p, p]);
+        s.push(&bytes);
+        assert_eq!(std::iter::from_fn(|| s.next_frame()).collect::<Vec<_>>(), vec![p, p]);
     }
 }

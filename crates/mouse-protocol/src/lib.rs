@@ -13,7 +13,8 @@
 //! * [`calibration`]: counts per metre (10 cm = 850 counts) and conversions to metres and
 //!   robot wheel increments.
 //!
-//! Every decoder is total: it never panics on any input and skips garbage.
+//! Every decoder is total: it never panics on any input and skips garbage. The three
+//! streams are [`motus_wire::Stream`]s over a [`PacketScanner`].
 
 #![forbid(unsafe_code)]
 
@@ -28,8 +29,9 @@ pub use calibration::Calibration;
 pub use converter::{ConverterPacket, ConverterStream, DeviceType, PACKET_LEN};
 pub use error::PacketError;
 pub use microsoft::{MicrosoftPacket, MicrosoftStream};
+pub use motus_wire::{Stream, StreamStats};
 pub use mouse_systems::{MouseSystemsPacket, MouseSystemsStream};
-pub use scan::StreamStats;
+pub use scan::{Packet, PacketScanner};
 
 /// Relative motion and buttons of one serial-mouse packet, in one convention for both
 /// protocols: `dx` positive to the right, `dy` positive **up** (away from the user), as

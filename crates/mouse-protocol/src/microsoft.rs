@@ -19,12 +19,14 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::PacketError;
-use crate::scan::{ScanBuffer, StreamStats};
+use motus_wire::Stream;
+
+use crate::scan::PacketScanner;
 use crate::MouseReport;
 
 /// Bytes in one Microsoft packet.
 pub const PACKET_LEN: usize = 3;
-const SYNC: u8 = 0x40;
+pub(crate) const SYNC: u8 = 0x40;
 const DATA7: u8 = 0x7F;
 
 /// One Microsoft-protocol packet.
@@ -93,70 +95,11 @@ impl MicrosoftPacket {
     }
 }
 
-/// Streaming decoder for a Microsoft mouse: a packet starts at a byte with bit 6 set and
-/// needs two following bytes with bit 6 clear; otherwise the start byte is dropped and the
-/// search resumes at the next byte (so the `'M'` a mouse sends after reset is skipped).
-#[derive(Debug, Clone, Default)]
-pub struct MicrosoftStream {
-    scan: ScanBuffer,
-}
-
-impl MicrosoftStream {
-    /// An empty decoder.
-    #[must_use]
-    pub fn new() -> MicrosoftStream {
-        MicrosoftStream::default()
-    }
-
-    /// Pushes received bytes; calls `on_packet` for every packet completed, in order.
-    pub fn push_with(&mut self, bytes: &[u8], mut on_packet: impl FnMut(MicrosoftPacket)) {
-        self.scan.extend(bytes);
-        loop {
-            let rest = self.scan.rest();
-            let Some(i) = rest.iter().position(|&b| b & SYNC != 0) else {
-                let n = rest.len();
-                self.scan.skip_garbage(n);
-                break;
-            };
-            self.scan.skip_garbage(i);
-            let Some(candidate) = self.scan.rest().get(..PACKET_LEN) else {
-                break;
-            };
-            match MicrosoftPacket::decode(candidate) {
-                Ok(p) => {
-                    self.scan.take_packet(PACKET_LEN);
-                    on_packet(p);
-                }
-                Err(_) => self.scan.skip_garbage(1),
-            }
-        }
-        self.scan.compact();
-    }
-
-    /// Pushes received bytes and returns the packets completed.
-    pub fn push(&mut self, bytes: &[u8]) -> Vec<MicrosoftPacket> {
-        let mut out = Vec::new();
-        self.push_with(bytes, |p| out.push(p));
-        out
-    }
-
-    /// Bytes of an incomplete packet kept for the next push (at most 2).
-    #[must_use]
-    pub fn pending(&self) -> usize {
-        self.scan.pending()
-    }
-
-    /// Drops an incomplete packet, counting it as garbage.
-    pub fn flush(&mut self) {
-        self.scan.flush();
-    }
-
-    /// Totals since creation.
-    #[must_use]
-    pub fn stats(&self) -> StreamStats {
-        self.scan.stats
-    }
-}
+/// Streaming decoder for a Microsoft mouse (`MicrosoftStream::default()`): a packet starts
+/// at a byte with bit 6 set and needs two following bytes with bit 6 clear; otherwise the
+/// start byte is dropped and the search resumes at the next byte (so the `'M'` a mouse
+/// sends after reset is skipped). At most 2 bytes of an incomplete packet are pending.
+pub type MicrosoftStream = Stream<PacketScanner<MicrosoftPacket>>;
 
 #[cfg(test)]
 mod tests {
@@ -199,10 +142,14 @@ mod tests {
         let mut bytes = vec![0x01, 0x02, b'M'];
         bytes.extend_from_slice(&p.encode());
         bytes.push(0x4D);
-        let mut s = MicrosoftStream::new();
-        let got: Vec<_> = bytes.iter().flat_map(|b| s.push(std::slice::from_ref(b))).collect();
+        let mut s = MicrosoftStream::default();
+        let mut got = Vec::new();
+        for b in &bytes {
+            s.push(std::slice::from_ref(b));
+            got.extend(std::iter::from_fn(|| s.next_frame()));
+        }
         assert_eq!(got, vec![p]);
-        assert_eq!(s.stats(), StreamStats { packets: 1, garbage_bytes: 3 });
+        assert_eq!((s.stats().frames, s.stats().garbage_bytes), (1, 3));
         assert_eq!(s.pending(), 1);
     }
 }

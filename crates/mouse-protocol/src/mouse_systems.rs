@@ -23,13 +23,15 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::PacketError;
-use crate::scan::{ScanBuffer, StreamStats};
+use motus_wire::Stream;
+
+use crate::scan::PacketScanner;
 use crate::MouseReport;
 
 /// Bytes in one Mouse Systems packet.
 pub const PACKET_LEN: usize = 5;
-const HEADER_MASK: u8 = 0xF8;
-const HEADER: u8 = 0x80;
+pub(crate) const HEADER_MASK: u8 = 0xF8;
+pub(crate) const HEADER: u8 = 0x80;
 
 /// One Mouse Systems packet.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -104,69 +106,10 @@ impl MouseSystemsPacket {
     }
 }
 
-/// Streaming decoder for a Mouse Systems mouse: a packet starts at a byte 0x80..=0x87 and
-/// takes the four bytes after it.
-#[derive(Debug, Clone, Default)]
-pub struct MouseSystemsStream {
-    scan: ScanBuffer,
-}
-
-impl MouseSystemsStream {
-    /// An empty decoder.
-    #[must_use]
-    pub fn new() -> MouseSystemsStream {
-        MouseSystemsStream::default()
-    }
-
-    /// Pushes received bytes; calls `on_packet` for every packet completed, in order.
-    pub fn push_with(&mut self, bytes: &[u8], mut on_packet: impl FnMut(MouseSystemsPacket)) {
-        self.scan.extend(bytes);
-        loop {
-            let rest = self.scan.rest();
-            let Some(i) = rest.iter().position(|&b| b & HEADER_MASK == HEADER) else {
-                let n = rest.len();
-                self.scan.skip_garbage(n);
-                break;
-            };
-            self.scan.skip_garbage(i);
-            let Some(candidate) = self.scan.rest().get(..PACKET_LEN) else {
-                break;
-            };
-            match MouseSystemsPacket::decode(candidate) {
-                Ok(p) => {
-                    self.scan.take_packet(PACKET_LEN);
-                    on_packet(p);
-                }
-                Err(_) => self.scan.skip_garbage(1),
-            }
-        }
-        self.scan.compact();
-    }
-
-    /// Pushes received bytes and returns the packets completed.
-    pub fn push(&mut self, bytes: &[u8]) -> Vec<MouseSystemsPacket> {
-        let mut out = Vec::new();
-        self.push_with(bytes, |p| out.push(p));
-        out
-    }
-
-    /// Bytes of an incomplete packet kept for the next push (at most 4).
-    #[must_use]
-    pub fn pending(&self) -> usize {
-        self.scan.pending()
-    }
-
-    /// Drops an incomplete packet, counting it as garbage.
-    pub fn flush(&mut self) {
-        self.scan.flush();
-    }
-
-    /// Totals since creation.
-    #[must_use]
-    pub fn stats(&self) -> StreamStats {
-        self.scan.stats
-    }
-}
+/// Streaming decoder for a Mouse Systems mouse (`MouseSystemsStream::default()`): a packet
+/// starts at a byte 0x80..=0x87 and takes the four bytes after it. At most 4 bytes of an
+/// incomplete packet are pending.
+pub type MouseSystemsStream = Stream<PacketScanner<MouseSystemsPacket>>;
 
 #[cfg(test)]
 mod tests {
@@ -205,8 +148,9 @@ mod tests {
         let mut bytes = vec![0x00, 0x7F, 0x90];
         bytes.extend_from_slice(&p.encode());
         bytes.extend_from_slice(&p.encode());
-        let mut s = MouseSystemsStream::new();
-        assert_eq!(s.push(&bytes), vec![p, p]);
-        assert_eq!(s.stats(), StreamStats { packets: 2, garbage_bytes: 3 });
+        let mut s = MouseSystemsStream::default();
+        s.push(&bytes);
+        assert_eq!(std::iter::from_fn(|| s.next_frame()).collect::<Vec<_>>(), vec![p, p]);
+        assert_eq!((s.stats().frames, s.stats().garbage_bytes), (2, 3));
     }
 }

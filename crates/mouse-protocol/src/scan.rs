@@ -1,67 +1,84 @@
-//! The buffer shared by the streaming decoders: bytes pushed in arbitrary chunks, a read
-//! position, and totals.
+//! [`PacketScanner`]: finds the fixed-length packets of the three protocols for their
+//! stream decoders ([`motus_wire::Stream`]).
 
-use serde::{Deserialize, Serialize};
+use std::convert::Infallible;
+use std::fmt;
+use std::marker::PhantomData;
 
-/// Running totals of a streaming decoder since it was created.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub struct StreamStats {
-    /// Packets decoded.
-    pub packets: u64,
-    /// Bytes skipped as garbage (outside any packet, or the first byte of a rejected
-    /// candidate).
-    pub garbage_bytes: u64,
+use motus_wire::{Scan, Scanner};
+
+use crate::{converter, microsoft, mouse_systems, ConverterPacket, MicrosoftPacket, MouseSystemsPacket};
+
+/// A fixed-length packet whose first byte is recognisable.
+pub trait Packet: Sized {
+    /// Bytes in one packet.
+    const LEN: usize;
+    /// True if `byte` can start a packet.
+    fn is_start(byte: u8) -> bool;
+    /// The packet in exactly [`Packet::LEN`] bytes, if they are one.
+    fn parse(bytes: &[u8]) -> Option<Self>;
 }
 
-/// Bytes received and not yet resolved. `pos` is the first unresolved byte.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct ScanBuffer {
-    buf: Vec<u8>,
-    pos: usize,
-    pub(crate) stats: StreamStats,
+/// Finds a packet `P`: a start byte and the bytes after it that decode; otherwise the start
+/// byte is garbage and the search resumes at the next byte.
+pub struct PacketScanner<P>(PhantomData<fn() -> P>);
+
+impl<P> Default for PacketScanner<P> {
+    fn default() -> Self {
+        PacketScanner(PhantomData)
+    }
 }
 
-impl ScanBuffer {
-    /// Appends received bytes.
-    pub(crate) fn extend(&mut self, bytes: &[u8]) {
-        self.buf.extend_from_slice(bytes);
+impl<P> Clone for PacketScanner<P> {
+    fn clone(&self) -> Self {
+        *self
     }
+}
 
-    /// The unresolved bytes.
-    pub(crate) fn rest(&self) -> &[u8] {
-        self.buf.get(self.pos..).unwrap_or_default()
+impl<P> Copy for PacketScanner<P> {}
+
+impl<P> fmt::Debug for PacketScanner<P> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "PacketScanner<{}>", std::any::type_name::<P>())
     }
+}
 
-    /// Skips `n` bytes as garbage.
-    pub(crate) fn skip_garbage(&mut self, n: usize) {
-        let n = n.min(self.rest().len());
-        self.pos += n;
-        self.stats.garbage_bytes += n as u64;
-    }
+impl<P: Packet> Scanner for PacketScanner<P> {
+    type Frame = P;
+    type Error = Infallible;
 
-    /// Consumes one packet of `n` bytes.
-    pub(crate) fn take_packet(&mut self, n: usize) {
-        self.pos += n.min(self.rest().len());
-        self.stats.packets += 1;
-    }
-
-    /// Drops the resolved bytes (call after a push).
-    pub(crate) fn compact(&mut self) {
-        if self.pos > 0 {
-            self.buf.drain(..self.pos.min(self.buf.len()));
-            self.pos = 0;
+    fn scan(&self, buf: &[u8]) -> Scan<P> {
+        match buf.first() {
+            None => Scan::Incomplete,
+            Some(&b) if !P::is_start(b) => Scan::Skip,
+            Some(_) => match buf.get(..P::LEN) {
+                None => Scan::Incomplete,
+                Some(candidate) => match P::parse(candidate) {
+                    Some(frame) => Scan::Frame { frame, len: P::LEN },
+                    None => Scan::Skip,
+                },
+            },
         }
     }
+}
 
-    /// Unresolved bytes kept for the next push.
-    pub(crate) fn pending(&self) -> usize {
-        self.rest().len()
-    }
+/// Implements [`Packet`] with a packet type's length, start-byte test and `decode`.
+macro_rules! packet {
+    ($($packet:ty: $len:expr, |$byte:ident| $is_start:expr;)*) => {$(
+        impl Packet for $packet {
+            const LEN: usize = $len;
+            fn is_start($byte: u8) -> bool {
+                $is_start
+            }
+            fn parse(bytes: &[u8]) -> Option<Self> {
+                <$packet>::decode(bytes).ok()
+            }
+        }
+    )*};
+}
 
-    /// Forgets the unresolved bytes, counting them as garbage.
-    pub(crate) fn flush(&mut self) {
-        let n = self.pending();
-        self.skip_garbage(n);
-        self.compact();
-    }
+packet! {
+    ConverterPacket: converter::PACKET_LEN, |byte| byte == converter::START;
+    MicrosoftPacket: microsoft::PACKET_LEN, |byte| byte & microsoft::SYNC != 0;
+    MouseSystemsPacket: mouse_systems::PACKET_LEN, |byte| byte & mouse_systems::HEADER_MASK == mouse_systems::HEADER;
 }

@@ -50,14 +50,15 @@ proptest! {
     /// garbage, or pending; every packet re-encodes to a 7-byte packet.
     #[test]
     fn converter_stream_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..400), chunk in 1usize..20) {
-        let mut s = ConverterStream::new();
+        let mut s = ConverterStream::default();
         let mut n = 0u64;
         for c in bytes.chunks(chunk) {
-            n += s.push(c).len() as u64;
+            s.push(c);
+            n += std::iter::from_fn(|| s.next_frame()).count() as u64;
         }
         let st = s.stats();
-        prop_assert_eq!(st.packets, n);
-        prop_assert_eq!(st.packets * 7 + st.garbage_bytes + s.pending() as u64, bytes.len() as u64);
+        prop_assert_eq!(st.frames, n);
+        prop_assert_eq!(st.frames * 7 + st.garbage_bytes + s.pending() as u64, bytes.len() as u64);
         prop_assert!(s.pending() < 7);
     }
 
@@ -78,10 +79,11 @@ proptest! {
         for (g, b) in garbage.iter().enumerate() {
             prop_assume!(*b != b'a' || bytes.get(g + 6) != Some(&b'x'));
         }
-        let mut s = ConverterStream::new();
+        let mut s = ConverterStream::default();
         let mut got = Vec::new();
         for c in bytes.chunks(chunk) {
-            got.extend(s.push(c));
+            s.push(c);
+            got.extend(std::iter::from_fn(|| s.next_frame()));
         }
         prop_assert_eq!(got, packets);
         prop_assert_eq!(s.stats().garbage_bytes, garbage.len() as u64);
@@ -89,20 +91,22 @@ proptest! {
 
     #[test]
     fn serial_streams_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..300), chunk in 1usize..9) {
-        let mut ms = MicrosoftStream::new();
-        let mut sy = MouseSystemsStream::new();
+        let mut ms = MicrosoftStream::default();
+        let mut sy = MouseSystemsStream::default();
         for c in bytes.chunks(chunk) {
-            for p in ms.push(c) {
+            ms.push(c);
+            while let Some(p) = ms.next_frame() {
                 prop_assert_eq!(MicrosoftPacket::decode(&p.encode()).unwrap(), p);
             }
-            for p in sy.push(c) {
+            sy.push(c);
+            while let Some(p) = sy.next_frame() {
                 prop_assert_eq!(MouseSystemsPacket::decode(&p.encode()).unwrap(), p);
             }
         }
         let a = ms.stats();
-        prop_assert_eq!(a.packets * 3 + a.garbage_bytes + ms.pending() as u64, bytes.len() as u64);
+        prop_assert_eq!(a.frames * 3 + a.garbage_bytes + ms.pending() as u64, bytes.len() as u64);
         let b = sy.stats();
-        prop_assert_eq!(b.packets * 5 + b.garbage_bytes + sy.pending() as u64, bytes.len() as u64);
+        prop_assert_eq!(b.frames * 5 + b.garbage_bytes + sy.pending() as u64, bytes.len() as u64);
     }
 
     /// Microsoft: garbage of data bytes (bit 6 clear) then packets: all found.
@@ -115,7 +119,8 @@ proptest! {
         for p in &packets {
             bytes.extend_from_slice(&p.encode());
         }
-        let mut s = MicrosoftStream::new();
-        prop_assert_eq!(s.push(&bytes), packets);
+        let mut s = MicrosoftStream::default();
+        s.push(&bytes);
+        prop_assert_eq!(std::iter::from_fn(|| s.next_frame()).collect::<Vec<_>>(), packets);
     }
 }

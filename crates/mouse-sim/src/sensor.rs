@@ -244,14 +244,15 @@ mod tests {
         let cfg = SensorConfig { garbage_rate: 0.5, seed: 7, ..SensorConfig::default() };
         let mut s = MouseSensor::new(cfg).unwrap();
         let m = s.motion();
-        let mut dec = ConverterStream::new();
+        let mut dec = ConverterStream::default();
         let (mut sx, mut sy) = (0i64, 0i64);
         for i in 0..500 {
             m.add_displacement(0.00037 * f64::from(i % 7), -0.00021);
-            dec.push_with(&s.next_bytes(), |p| {
+            dec.push(&s.next_bytes());
+            while let Some(p) = dec.next_frame() {
                 sx += i64::from(p.dx);
                 sy += i64::from(p.dy);
-            });
+            }
         }
         assert!(dec.stats().garbage_bytes > 0);
         assert_eq!((sx, sy), s.counts_sent());

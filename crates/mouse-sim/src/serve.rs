@@ -5,7 +5,7 @@ use std::io;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use motus_serial::{sleep_until, Link};
+use motus_serial::{sleep_until, Link, Paced};
 
 use crate::sensor::MouseSensor;
 
@@ -22,16 +22,15 @@ pub struct ServeStats {
 }
 
 /// Sends the sensor's packets on `link` until `stop` is set, then one last packet with
-/// the counts still owed. Bytes leave one by one at the link's baud rate (as
-/// [`motus_serial::Paced`] does; the link is borrowed so a pty outlives the run and a host
-/// can read what is still buffered); a period starts at `start + k * period`, or when the
-/// line is free if that is later. The one-way converter reads nothing: input from the
-/// host is discarded.
+/// the counts still owed. Bytes leave one by one at the link's baud rate ([`Paced`]; the
+/// link is borrowed so a pty outlives the run and a host can read what is still buffered);
+/// a period starts at `start + k * period`, or when the line is free if that is later. The
+/// one-way converter reads nothing: input from the host is discarded.
 ///
 /// # Errors
 /// An IO error of the link.
 pub fn serve(link: &mut dyn Link, sensor: &mut MouseSensor, stop: &AtomicBool) -> io::Result<ServeStats> {
-    let char_time = link.line().char_time();
+    let mut link = Paced::new(link);
     let period = sensor.config().period;
     let mut stats = ServeStats::default();
     let mut due = Instant::now() + period;
@@ -49,12 +48,7 @@ pub fn serve(link: &mut dyn Link, sensor: &mut MouseSensor, stop: &AtomicBool) -
         }
         let stopping = stop.load(Ordering::Relaxed);
         let bytes = sensor.next_bytes();
-        let mut t = Instant::now();
-        for b in &bytes {
-            t += char_time;
-            sleep_until(t);
-            link.write_all(std::slice::from_ref(b))?;
-        }
+        link.write_all(&bytes)?;
         stats.packets += 1;
         stats.bytes += bytes.len() as u64;
         if stopping {

@@ -48,17 +48,18 @@ fn run(config: SensorConfig, steps: u32, step_m: (f64, f64)) -> Run {
         })
     };
     let start = Instant::now();
-    let mut dec = ConverterStream::new();
+    let mut dec = ConverterStream::default();
     let mut sum = (0i64, 0i64);
     let mut buf = [0u8; 256];
     let mut quiet_since: Option<Instant> = None;
     loop {
         let n = host.read(&mut buf, Duration::from_millis(20)).unwrap();
-        dec.push_with(&buf[..n], |p| {
+        dec.push(&buf[..n]);
+        while let Some(p) = dec.next_frame() {
             assert_eq!(p.device, DeviceType::Microsoft);
             sum.0 += i64::from(p.dx);
             sum.1 += i64::from(p.dy);
-        });
+        }
         if n == 0 && stop.load(Ordering::Relaxed) {
             let t = *quiet_since.get_or_insert_with(Instant::now);
             if t.elapsed() > Duration::from_millis(100) {
@@ -72,7 +73,7 @@ fn run(config: SensorConfig, steps: u32, step_m: (f64, f64)) -> Run {
     feeder.join().unwrap();
     // The pty (returned by the server thread) stays open until the host has read all.
     let (stats, _pty) = server.join().unwrap();
-    assert_eq!(dec.stats().packets, stats.packets);
+    assert_eq!(dec.stats().frames, stats.packets);
     Run {
         sum,
         fed: motion.total(),

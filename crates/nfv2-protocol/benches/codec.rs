@@ -6,7 +6,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use motus_nfv2_protocol::{
-    decode_frame, Command, CommandCode as C, Frame, FrameBuilder, Revision, StreamDecoder,
+    decode_frame, Command, CommandCode as C, Frame, FrameBuilder, FrameScanner, Revision, StreamDecoder,
 };
 
 fn request() -> Frame {
@@ -44,9 +44,12 @@ fn bench(c: &mut Criterion) {
         group.bench_function(format!("decode/{name}"), |b| {
             b.iter(|| decode_frame(black_box(&bytes), rev).unwrap());
         });
-        let mut stream = StreamDecoder::new(rev);
+        let mut stream = StreamDecoder::new(FrameScanner::new(rev));
         group.bench_function(format!("stream/{name}"), |b| {
-            b.iter(|| stream.push(black_box(&bytes)));
+            b.iter(|| {
+                stream.push(black_box(&bytes));
+                stream.next_frame()
+            });
         });
     }
     group.finish();

@@ -9,8 +9,9 @@
 //! - [`crc`]: CRC-8, polynomial 0xD8 MSB-first, init 0, no reflection, no final XOR, over
 //!   bytes 3..n-1 (address to last parameter byte).
 //! - [`Revision`]: value widths per (revision, code); [`Revision::LATEST`] by default.
-//! - [`StreamDecoder`]: finds `'#' n !n` frames in a noisy stream, resynchronises after a
-//!   bad CRC, counts garbage and CRC failures.
+//! - [`FrameScanner`] / [`StreamDecoder`]: find `'#' n !n` frames in a noisy stream (for
+//!   the serial bus master, and streaming), resynchronise after a bad CRC, count garbage
+//!   and corrupt frames.
 //! - [`FrameBuilder`], [`DeviceProfile`], [`wire_time`]: what a bus scheduler needs to pack
 //!   commands per slave and budget wire time (57600 bps RS-485: a 2 ms cycle is out of
 //!   reach for one query and its answer, 3.1 ms).
@@ -58,10 +59,11 @@ pub use command::Command;
 pub use drive::{DriveMode, DriveStatus, DrivesMisc};
 pub use error::{DecodeError, EncodeError};
 pub use frame::{Frame, RawFrame, HEADER_LEN, MAX_FRAME_LEN, MIN_FRAME_LEN, OVERHEAD, START};
+pub use motus_wire::StreamStats;
 pub use profile::{wire_time, DeviceProfile, BITS_PER_BYTE_8N1, RS485_BAUD};
 pub use reply::answer;
 pub use revision::{ParseRevisionError, Revision};
-pub use stream::{StreamDecoder, StreamStats};
+pub use stream::{FrameScanner, StreamDecoder, StreamEvent};
 pub use value::{Regulator, ValueKind};
 
 /// Decodes exactly one frame (all of `bytes`) with `rev`'s value widths.

@@ -3,7 +3,7 @@
 
 use motus_nfv2_protocol::{
     answer, crc::crc8_bitwise, decode_frame, encode_frame, Command, CommandCode, DeviceProfile, Frame,
-    FrameBuilder, Regulator, Revision, StreamDecoder, ValueKind,
+    FrameBuilder, FrameScanner, Regulator, Revision, StreamDecoder, StreamEvent, ValueKind,
 };
 use proptest::prelude::*;
 use proptest::test_runner::RngSeed;
@@ -73,8 +73,13 @@ fn chunks<'a>(bytes: &'a [u8], sizes: &[usize]) -> Vec<&'a [u8]> {
 fn push_all(d: &mut StreamDecoder, stream: &[u8], sizes: &[usize]) -> Vec<Frame> {
     let mut frames = Vec::new();
     for chunk in chunks(stream, sizes) {
-        for item in d.push(chunk) {
-            frames.push(item.unwrap());
+        d.push(chunk);
+        while let Some(event) = d.next_event() {
+            match event {
+                StreamEvent::Frame(f) => frames.push(f),
+                StreamEvent::Corrupt(e) => panic!("corrupt candidate: {e}"),
+                StreamEvent::Garbage { .. } => {}
+            }
         }
     }
     frames
@@ -134,9 +139,11 @@ proptest! {
         sizes in prop::collection::vec(1usize..40, 1..8),
         rev in revision(),
     ) {
-        let mut d = StreamDecoder::new(rev);
+        let mut d = StreamDecoder::new(FrameScanner::new(rev));
         for chunk in chunks(&bytes, &sizes) {
-            let _ = d.push(chunk);
+            d.push(chunk);
+            assert_accounting(&d);
+            while d.next_event().is_some() {}
             assert_accounting(&d);
         }
     }
@@ -160,12 +167,12 @@ proptest! {
             stream.extend_from_slice(&bytes);
         }
         stream.extend_from_slice(&noise[6]);
-        let mut d = StreamDecoder::new(rev);
+        let mut d = StreamDecoder::new(FrameScanner::new(rev));
         let found = push_all(&mut d, &stream, &sizes);
         prop_assert_eq!(&found, &frames);
         let s = d.stats();
         prop_assert_eq!(s.frame_bytes, frame_bytes as u64);
-        prop_assert_eq!(s.crc_errors, 0);
+        prop_assert_eq!(s.corrupt_frames, 0);
         assert_accounting(&d);
     }
 
@@ -180,11 +187,15 @@ proptest! {
             stream.extend_from_slice(&encode_frame(f, Revision::LATEST).unwrap());
         }
         let mut whole = StreamDecoder::default();
-        let a = whole.push(&stream);
+        // Frames and corrupt candidates (garbage is reported per push, so it may split).
+        let decided = |e: &StreamEvent| !matches!(e, StreamEvent::Garbage { .. });
+        whole.push(&stream);
+        let a: Vec<_> = whole.by_ref().filter(decided).collect();
         let mut pieces = StreamDecoder::default();
         let mut b = Vec::new();
         for chunk in chunks(&stream, &sizes) {
-            b.extend(pieces.push(chunk));
+            pieces.push(chunk);
+            b.extend(pieces.by_ref().filter(decided));
         }
         prop_assert_eq!(a, b);
         prop_assert_eq!(whole.stats(), pieces.stats());
@@ -244,11 +255,12 @@ proptest! {
             }
             stream.extend_from_slice(&bytes);
         }
-        let mut d = StreamDecoder::new(rev);
+        let mut d = StreamDecoder::new(FrameScanner::new(rev));
         let mut found = Vec::new();
         for chunk in chunks(&stream, &sizes) {
             // Errors (malformed candidates from noise) are allowed; frames must all be there.
-            found.extend(d.push(chunk).into_iter().flatten());
+            d.push(chunk);
+            found.extend(std::iter::from_fn(|| d.next_frame()));
         }
         let mut it = found.iter();
         for f in &frames {

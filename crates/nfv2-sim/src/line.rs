@@ -1,5 +1,5 @@
 //! Serving one or more controllers on one serial link (the RS-485 bus, or a PC's USB to a
-//! gateway module).
+//! gateway module), with the serial simulators' one loop ([`SimServer`]).
 //!
 //! The line finds frames with the codec's resynchronising [`StreamDecoder`] (a frame is
 //! `'#' n !n`, not line silence, so no idle-gap flush); a frame with a bad CRC is ignored
@@ -21,14 +21,12 @@
 
 use std::collections::BTreeSet;
 use std::io;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
-use motus_nfv2_protocol::{wire_time, AddressPlan, Frame, Revision, StreamDecoder, StreamStats, RS485_BAUD};
-use motus_serial::{sleep_until, FaultConfig, FaultInjector, Link, Paced};
-use rand::rngs::SmallRng;
-use rand::{Rng, SeedableRng};
+use motus_nfv2_protocol::{wire_time, AddressPlan, DecodeError, Frame, FrameScanner, Revision, RS485_BAUD};
+use motus_serial::{Answer, FaultConfig, Link, Responder, ServeOptions, SimServer};
 
 use crate::config::ControllerConfig;
 use crate::controller::Controller;
@@ -90,15 +88,7 @@ impl LineOptions {
 }
 
 /// Errors starting a simulated line.
-#[derive(Debug, thiserror::Error)]
-pub enum LineError {
-    /// Bad options (no address, a duplicate, the broadcast address, rates outside 0..=1).
-    #[error("invalid simulator options: {0}")]
-    Options(String),
-    /// Bad controller configuration.
-    #[error(transparent)]
-    Controller(#[from] SimError),
-}
+pub type LineError = motus_serial::LineError<SimError>;
 
 /// The line's clock: simulated time is the time since the line started.
 #[derive(Debug, Clone, Copy)]
@@ -122,21 +112,24 @@ impl SimClock {
 
 /// Simulated controllers serving one link.
 pub struct SimLine {
+    server: SimServer<FrameScanner>,
+    served: Controllers,
+    addresses: Vec<u8>,
+}
+
+/// The controllers as the line serves them.
+struct Controllers {
     controllers: Vec<SharedController>,
-    link: Box<dyn Link>,
-    decoder: StreamDecoder,
-    options: LineOptions,
+    revision: Revision,
+    reply_delay: Duration,
     gateway: Option<u8>,
-    clock: SimClock,
-    rx_rng: SmallRng,
-    frames_served: u64,
 }
 
 impl SimLine {
     /// Powers the controllers on, serving `link`.
     ///
     /// # Errors
-    /// [`LineError::Options`] for bad options, [`LineError::Controller`] for a bad
+    /// [`LineError::Options`] for bad options, [`LineError::Model`] for a bad
     /// configuration.
     pub fn new(link: Box<dyn Link>, options: LineOptions) -> Result<SimLine, LineError> {
         check(&options)?;
@@ -148,55 +141,47 @@ impl SimLine {
                     .map(|c| Arc::new(Mutex::new(c)))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let mut link = link;
-        if options.faults.drop_rate > 0.0 || options.faults.corrupt_rate > 0.0 {
-            link = Box::new(FaultInjector::new(link, options.faults));
-        }
-        if options.baud_pacing {
-            link = Box::new(Paced::new(link));
-        }
+        let serve = ServeOptions {
+            baud_pacing: options.baud_pacing,
+            faults: options.faults,
+            poll: Duration::from_millis(2),
+            flush_when_idle: false,
+        };
+        let server = SimServer::new(link, FrameScanner::new(options.revision), serve)
+            .map_err(|e| LineError::Options(e.to_string()))?;
         let gateway = options.address_plan.gateway.filter(|g| options.addresses.contains(g));
-        Ok(SimLine {
+        let served = Controllers {
             controllers,
-            link,
-            decoder: StreamDecoder::new(options.revision),
+            revision: options.revision,
+            reply_delay: options.reply_delay,
             gateway,
-            rx_rng: SmallRng::seed_from_u64(options.faults.seed ^ 0x5eed),
-            options,
-            clock: SimClock { start: Instant::now() },
-            frames_served: 0,
-        })
+        };
+        Ok(SimLine { server, served, addresses: options.addresses })
     }
 
     /// The controllers with their addresses, in the order of the options.
     #[must_use]
     pub fn controllers(&self) -> Vec<(u8, SharedController)> {
-        self.options.addresses.iter().copied().zip(self.controllers.iter().cloned()).collect()
+        self.addresses.iter().copied().zip(self.served.controllers.iter().cloned()).collect()
     }
 
     /// The controller at `address`, if served.
     #[must_use]
     pub fn controller(&self, address: u8) -> Option<SharedController> {
-        let i = self.options.addresses.iter().position(|&a| a == address)?;
-        self.controllers.get(i).cloned()
+        let i = self.addresses.iter().position(|&a| a == address)?;
+        self.served.controllers.get(i).cloned()
     }
 
     /// The line's clock.
     #[must_use]
     pub fn clock(&self) -> SimClock {
-        self.clock
+        SimClock { start: self.server.start() }
     }
 
-    /// Answers sent so far.
+    /// The serve loop (answers sent, the request decoder's statistics, simulated time).
     #[must_use]
-    pub fn frames_served(&self) -> u64 {
-        self.frames_served
-    }
-
-    /// The request decoder's totals (frames, garbage bytes, CRC failures).
-    #[must_use]
-    pub fn decoder_stats(&self) -> StreamStats {
-        self.decoder.stats()
+    pub fn server(&self) -> &SimServer<FrameScanner> {
+        &self.server
     }
 
     /// Serves the line until `stop` is set.
@@ -204,89 +189,41 @@ impl SimLine {
     /// # Errors
     /// An IO error of the link.
     pub fn run(&mut self, stop: &AtomicBool) -> io::Result<()> {
-        let mut buf = [0u8; 256];
-        let mut first_byte_at: Option<Instant> = None;
-        while !stop.load(Ordering::Relaxed) {
-            let n = self.link.read(&mut buf, Duration::from_millis(2))?;
-            if n == 0 {
-                self.tick();
-                continue;
-            }
-            let received_at = Instant::now();
-            first_byte_at.get_or_insert(received_at);
-            let data = buf.get_mut(..n).unwrap_or_default();
-            let rate = self.options.faults.corrupt_rate;
-            if rate > 0.0 {
-                for b in data.iter_mut() {
-                    if self.rx_rng.gen_bool(rate) {
-                        *b ^= self.rx_rng.gen_range(1..=255u8);
-                    }
-                }
-            }
-            let mut frames = Vec::new();
-            self.decoder.push_with(data, |item| match item {
-                Ok(frame) => frames.push(frame),
-                Err(e) => tracing::debug!(error = %e, "ignored a malformed frame"),
-            });
-            for frame in frames {
-                self.serve(&frame, first_byte_at.take())?;
-            }
-            if self.decoder.pending() == 0 {
-                first_byte_at = None;
-            }
-            self.tick();
-        }
-        self.tick();
-        Ok(())
+        self.server.run(&mut self.served, stop)
     }
+}
 
-    /// Hands one frame to every controller and sends the answer, if any, on time.
-    fn serve(&mut self, frame: &Frame, first_byte_at: Option<Instant>) -> io::Result<()> {
-        let rev = self.options.revision;
-        let line = self.link.line();
-        let request_len = frame.encoded_len(rev).unwrap_or(0);
-        // The request has arrived once its last byte is on the wire.
-        let arrived = match (self.options.baud_pacing, first_byte_at) {
-            (true, Some(t0)) => {
-                let at = t0 + line.wire_time(request_len);
-                sleep_until(at);
-                at
-            }
-            _ => Instant::now(),
-        };
-        let now = self.clock.at(arrived);
+impl Responder for Controllers {
+    type Frame = Frame;
+    type Error = DecodeError;
+
+    /// Hands one frame to every controller; the answer, if any, is due after the
+    /// processing delay (and the relay over the gateway).
+    /// A frame with a bad CRC is ignored by every controller (the default
+    /// [`Responder::corrupt`]).
+    fn respond(&mut self, frame: Frame, now: Duration) -> Option<Answer> {
         let mut reply = None;
         for c in &self.controllers {
-            if let Some(r) = lock(c).handle(frame, now) {
+            if let Some(r) = lock(c).handle(&frame, now) {
                 reply = Some(r);
             }
         }
-        let Some(reply) = reply else { return Ok(()) };
-        let bytes = match reply.encode(rev) {
-            Ok(b) => b,
-            Err(e) => {
-                tracing::warn!(error = %e, "cannot encode an answer");
-                return Ok(());
-            }
-        };
-        let mut due = arrived + self.options.reply_delay;
+        let mut answer = Answer::encoded(reply?.encode(self.revision), self.reply_delay)?;
         if self.gateway.is_some_and(|g| g != frame.address) {
-            due += wire_time(request_len, RS485_BAUD)
-                + self.options.reply_delay
-                + wire_time(bytes.len(), RS485_BAUD);
+            let request_len = frame.encoded_len(self.revision).unwrap_or(0);
+            answer.delay += wire_time(request_len, RS485_BAUD)
+                + self.reply_delay
+                + wire_time(answer.bytes.len(), RS485_BAUD);
         }
-        sleep_until(due);
-        self.link.write_all(&bytes)?;
-        self.frames_served += 1;
-        Ok(())
+        Some(answer)
     }
 
     /// Brings every controller up to the line's time.
-    fn tick(&mut self) {
-        let now = self.clock.now();
+    fn tick(&mut self, now: Duration) -> io::Result<()> {
         for c in &self.controllers {
             lock(c).advance_to(now);
         }
+        Ok(())
     }
 }
 
@@ -302,14 +239,7 @@ fn check(options: &LineOptions) -> Result<(), LineError> {
     if let Some(b) = options.address_plan.broadcast.filter(|b| options.addresses.contains(b)) {
         return bad(format!("address {b} is the broadcast address of the plan"));
     }
-    for (name, rate) in
-        [("drop rate", options.faults.drop_rate), ("corrupt rate", options.faults.corrupt_rate)]
-    {
-        if !(0.0..=1.0).contains(&rate) {
-            return bad(format!("{name} must be within 0..=1, got {rate}"));
-        }
-    }
-    Ok(())
+    options.faults.check().or_else(|e| bad(e.to_string()))
 }
 
 #[cfg(test)]

@@ -6,21 +6,17 @@
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use motus_nfv2_protocol::{
-    Command, CommandCode as C, DriveMode, DriveStatus, Frame, FrameBuilder, Revision, StreamDecoder,
+    Command, CommandCode as C, DriveMode, DriveStatus, Frame, FrameBuilder, FrameScanner, Revision,
 };
 use motus_nfv2_sim::{lock, LineOptions, SharedController, SimClock, SimLine};
-use motus_serial::{FaultConfig, LineSettings, Link, PtyLink, SerialLink};
+use motus_serial::{FaultConfig, FramedLink, LineSettings, PtyLink, SerialLink, ServeThread};
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 const REV: Revision = Revision::LATEST;
 
 struct Sim {
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<SimLine>>,
+    line: ServeThread<SimLine>,
     controllers: Vec<(u8, SharedController)>,
     clock: SimClock,
 }
@@ -28,48 +24,27 @@ struct Sim {
 impl Sim {
     fn start(path: &Path, baud: u32, options: LineOptions) -> Sim {
         let pty = PtyLink::create(Some(path), LineSettings::n81(baud)).unwrap();
-        let mut line = SimLine::new(Box::new(pty), options).unwrap();
-        let controllers = line.controllers();
-        let clock = line.clock();
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || {
-            line.run(&flag).unwrap();
-            line
-        });
-        Sim { stop, thread: Some(thread), controllers, clock }
+        let line = SimLine::new(Box::new(pty), options).unwrap();
+        let (controllers, clock) = (line.controllers(), line.clock());
+        Sim { line: ServeThread::spawn("nfv2-sim", line, SimLine::run).unwrap(), controllers, clock }
     }
 
     fn controller(&self, address: u8) -> SharedController {
         self.controllers.iter().find(|(a, _)| *a == address).map(|(_, c)| c.clone()).unwrap()
     }
 
-    fn stop(mut self) -> SimLine {
-        self.stop.store(true, Ordering::Relaxed);
-        self.thread.take().unwrap().join().unwrap()
+    fn stop(self) -> SimLine {
+        self.line.stop().unwrap()
     }
 }
 
-impl Drop for Sim {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-struct Host {
-    link: SerialLink,
-    decoder: StreamDecoder,
-}
+/// The host side: answers read with the codec's stream decoder.
+struct Host(FramedLink<FrameScanner>);
 
 impl Host {
     fn open(path: &Path, baud: u32) -> Host {
-        Host {
-            link: SerialLink::open(path.to_str().unwrap(), baud).unwrap(),
-            decoder: StreamDecoder::new(REV),
-        }
+        let link = SerialLink::open(path.to_str().unwrap(), baud).unwrap();
+        Host(FramedLink::new(Box::new(link), FrameScanner::new(REV)))
     }
 
     fn send(&mut self, frame: &Frame) {
@@ -77,22 +52,11 @@ impl Host {
     }
 
     fn send_raw(&mut self, bytes: &[u8]) {
-        self.link.write_all(bytes).unwrap();
+        self.0.send(bytes).unwrap();
     }
 
     fn receive(&mut self, timeout: Duration) -> Option<Frame> {
-        let deadline = Instant::now() + timeout;
-        let mut buf = [0u8; 256];
-        loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            if left.is_zero() {
-                return None;
-            }
-            let n = self.link.read(&mut buf, left).unwrap();
-            if let Some(frame) = self.decoder.push(&buf[..n]).into_iter().next() {
-                return Some(frame.unwrap());
-            }
-        }
+        self.0.receive(timeout).unwrap()
     }
 
     fn transact(&mut self, frame: &Frame) -> Option<Frame> {
@@ -142,9 +106,9 @@ fn two_controllers_answer_and_a_wrong_address_stays_silent() {
     let answer = host.receive(Duration::from_millis(300)).expect("answered after garbage");
     assert_eq!(answer.address, 2);
     let line = sim.stop();
-    assert_eq!(line.frames_served(), 5);
-    let stats = line.decoder_stats();
-    assert!(stats.crc_errors >= 1 && stats.garbage_bytes >= 4, "{stats:?}");
+    assert_eq!(line.server().frames_served(), 5);
+    let stats = line.server().decoder_stats();
+    assert!(stats.corrupt_frames >= 1 && stats.garbage_bytes >= 4, "{stats:?}");
 }
 
 #[test]
@@ -244,7 +208,7 @@ fn dropped_answers_follow_the_seeded_rate() {
         .count();
     assert!((8..=32).contains(&answered), "{answered} of 40");
     let line = sim.stop();
-    assert_eq!(line.frames_served(), 40, "every request was answered, some answers lost");
+    assert_eq!(line.server().frames_served(), 40, "every request was answered, some answers lost");
 }
 
 #[test]
@@ -265,10 +229,10 @@ fn line_noise_loses_some_frames_and_the_line_recovers() {
             assert_eq!(answer.address, 2, "a corrupted answer never decodes as another");
             answered += 1;
         }
-        host.decoder.reset();
+        host.0.stream_mut().clear();
     }
     assert!((20..60).contains(&answered), "{answered} of 60");
     let line = sim.stop();
-    let stats = line.decoder_stats();
-    assert!(stats.crc_errors + stats.garbage_bytes > 0, "{stats:?}");
+    let stats = line.server().decoder_stats();
+    assert!(stats.corrupt_frames + stats.garbage_bytes > 0, "{stats:?}");
 }

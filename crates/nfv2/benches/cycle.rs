@@ -14,21 +14,22 @@
 use criterion::{black_box, Criterion};
 use motus_nfv2::pantilt::filter::{Limits, SecondOrderLimiter};
 use motus_nfv2::{
-    scan_frame, CyclePlan, DriveConfig, Nfv2Bus, Packing, PositionSample, SampleHistory, Scheduler,
-    SchedulerConfig,
+    CyclePlan, DriveConfig, Nfv2Bus, Packing, PositionSample, SampleHistory, Scheduler, SchedulerConfig,
 };
-use motus_nfv2_protocol::{Command, CommandCode as C, DeviceProfile, Frame, Revision, RS485_BAUD};
+use motus_nfv2_protocol::{
+    Command, CommandCode as C, DeviceProfile, Frame, FrameScanner, Revision, RS485_BAUD,
+};
 use motus_nfv2_sim::{LineOptions, SimLine};
-use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink};
-use std::sync::atomic::{AtomicBool, Ordering};
+use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink, ServeThread};
+use motus_wire::Scanner;
 use std::sync::Arc;
 use std::time::Duration;
 
 struct Rig {
+    /// Stops serving first (dropped first), before the folder of its pty goes.
+    _line: ServeThread<SimLine>,
     _dir: tempfile::TempDir,
     path: String,
-    stop: Arc<AtomicBool>,
-    thread: Option<std::thread::JoinHandle<()>>,
 }
 
 impl Rig {
@@ -37,26 +38,15 @@ impl Rig {
         let path = dir.path().join("nfv2");
         let pty = PtyLink::create(Some(&path), LineSettings::n81(RS485_BAUD)).unwrap();
         let options = LineOptions { addresses: vec![1, 2], baud_pacing: true, ..LineOptions::default() };
-        let mut line = SimLine::new(Box::new(pty), options).unwrap();
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || line.run(&flag).unwrap());
-        Rig { _dir: dir, path: path.to_str().unwrap().to_string(), stop, thread: Some(thread) }
+        let line = SimLine::new(Box::new(pty), options).unwrap();
+        let line = ServeThread::spawn("nfv2-sim", line, SimLine::run).unwrap();
+        Rig { _dir: dir, path: path.to_str().unwrap().to_string(), _line: line }
     }
 
     fn bus(&self) -> Nfv2Bus {
         let link = SerialLink::open(&self.path, RS485_BAUD).unwrap();
         let config = BusConfig { margin: Duration::from_millis(2), retries: 2 };
         Nfv2Bus::new(Arc::new(BusMaster::new(Box::new(link), config)))
-    }
-}
-
-impl Drop for Rig {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
     }
 }
 
@@ -126,7 +116,8 @@ fn main() {
     }
     let mut c = Criterion::default().configure_from_args();
     let bytes = answer_bytes();
-    c.bench_function("scan_answer", |b| b.iter(|| scan_frame(black_box(&bytes), Revision::LATEST)));
+    let scanner = FrameScanner::new(Revision::LATEST);
+    c.bench_function("scan_answer", |b| b.iter(|| scanner.scan(black_box(&bytes))));
     let frames: Vec<(Frame, Revision)> = [1u8, 2]
         .iter()
         .map(|&a| {

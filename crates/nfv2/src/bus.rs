@@ -10,11 +10,11 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use motus_nfv2_protocol::{DeviceProfile, Frame, Revision};
+use motus_nfv2_protocol::{DeviceProfile, Frame, FrameScanner, Revision};
 use motus_serial::{BusConfig, BusError, BusMaster, Request, SerialLink, Traced};
 
 use crate::error::Nfv2Error;
-use crate::framing::{scan_frame, AnswerShape};
+use crate::framing::AnswerShape;
 
 /// Answer length assumed for a raw query the device profile does not know.
 const UNKNOWN_ANSWER_LEN: usize = 64;
@@ -127,7 +127,6 @@ impl Nfv2Bus {
             None => 0,
         };
         let request = Request { device: u32::from(frame.address), bytes: &bytes, reply_len, idempotent };
-        let framing = |buf: &[u8]| scan_frame(buf, rev);
         let address = frame.address;
         let accept = |answer: &Frame| match &shape {
             Some(shape) => shape.matches(answer),
@@ -137,7 +136,7 @@ impl Nfv2Bus {
                     && answer.commands.iter().all(|c| !c.is_query() && queried.contains(&c.code()))
             }
         };
-        match self.master.transact(&request, &framing, accept) {
+        match self.master.transact(&request, &FrameScanner::new(rev), accept) {
             Ok(answer) => {
                 let received = answer.encoded_len(rev).unwrap_or(reply_len);
                 Ok(Exchanged { answer: Some(answer), sent: bytes.len(), received })

@@ -1,5 +1,5 @@
-//! Finding an NFv2 answer in received bytes for the bus master ([`motus_serial::Framing`]),
-//! built on the codec's frame parser, and checking that an answer is the one expected.
+//! Checking that an NFv2 answer is the one expected (the bus master finds answers with the
+//! codec's [`motus_nfv2_protocol::FrameScanner`]).
 //!
 //! A frame starts with `'#' n !n` (not with line silence); its CRC-8 covers the address and
 //! the commands. The NFv2 CRC (polynomial 0xD8, an even polynomial) misses 7 of the 255
@@ -8,31 +8,7 @@
 //! order and the expected number of values each ([`AnswerShape`]); values then pass the
 //! plausibility checks of [`crate::samples`] and the status debouncing of the drive.
 
-use motus_nfv2_protocol::{Command, CommandCode, DeviceProfile, Frame, RawFrame, Revision, START};
-use motus_serial::FrameScan;
-
-/// Looks for one NFv2 frame at the start of `buf`, splitting its commands with `rev`.
-///
-/// `Skip { corrupt: true }` for a frame-shaped candidate whose CRC or commands are bad,
-/// `Skip { corrupt: false }` for a byte that cannot start a frame.
-#[must_use]
-pub fn scan_frame(buf: &[u8], rev: Revision) -> FrameScan<Frame> {
-    let Some(&[start, n, complement]) = buf.first_chunk::<3>() else {
-        return match buf.first() {
-            Some(&b) if b != START => FrameScan::Skip { corrupt: false },
-            _ => FrameScan::Incomplete,
-        };
-    };
-    if start != START || complement != !n || n <= 3 {
-        return FrameScan::Skip { corrupt: false };
-    }
-    let len = usize::from(n) + 1;
-    let Some(candidate) = buf.get(..len) else { return FrameScan::Incomplete };
-    match RawFrame::parse(candidate).and_then(|raw| raw.decode(rev)) {
-        Ok(frame) => FrameScan::Frame { frame, len },
-        Err(_) => FrameScan::Skip { corrupt: true },
-    }
-}
+use motus_nfv2_protocol::{Command, CommandCode, DeviceProfile, Frame, Revision};
 
 /// What a valid answer to a request must look like: the slave's address and, in order,
 /// each queried code the device answers with its number of values.
@@ -71,33 +47,6 @@ impl AnswerShape {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic)]
     use super::*;
-
-    // From the codec's vectors (tests/vectors.rs of motus-nfv2-protocol, CRC by an
-    // independent script): query ReadDrivesPosition to address 1.
-    const QUERY: [u8; 7] = [0x23, 0x06, 0xF9, 0x01, 0x1A, 0x00, 0x20];
-
-    #[test]
-    fn finds_a_frame_after_noise_and_flags_bad_crcs() {
-        let rev = Revision::LATEST;
-        assert!(matches!(scan_frame(&[0x00], rev), FrameScan::Skip { corrupt: false }));
-        assert!(matches!(scan_frame(&QUERY[..2], rev), FrameScan::Incomplete));
-        assert!(matches!(scan_frame(&QUERY[..6], rev), FrameScan::Incomplete));
-        match scan_frame(&QUERY, rev) {
-            FrameScan::Frame { frame, len } => {
-                assert_eq!(len, 7);
-                assert_eq!(frame.address, 1);
-            }
-            other => panic!("{other:?}"),
-        }
-        let mut bad = QUERY;
-        bad[6] ^= 1;
-        assert!(matches!(scan_frame(&bad, rev), FrameScan::Skip { corrupt: true }));
-        // '#' with a wrong complement is not a frame start.
-        assert!(matches!(
-            scan_frame(&[0x23, 0x06, 0xF8, 1, 2, 3, 4], rev),
-            FrameScan::Skip { corrupt: false }
-        ));
-    }
 
     #[test]
     fn answer_shape_is_exact() {

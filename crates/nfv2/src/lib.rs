@@ -1,8 +1,9 @@
 //! # motus-nfv2 — the 1209A driver, the NFv2 bus scheduler and the pan-tilt head
 //!
 //! * [`Nfv2Bus`]: NFv2 exchanges on a shared [`motus_serial::BusMaster`] (raw frames for
-//!   `motus nfv2 <port> raw '<json>'`), answers found by [`scan_frame`] and accepted only
-//!   from the addressed slave with the expected shape.
+//!   `motus nfv2 <port> raw '<json>'`), answers found by the codec's
+//!   [`motus_nfv2_protocol::FrameScanner`] and accepted only from the addressed slave with
+//!   the expected shape ([`AnswerShape`]).
 //! * [`Scheduler`]: one packed frame per slave per cycle, the wire budget ([`CyclePlan`])
 //!   with a warning when the requested cycle is physically impossible, achieved cycle
 //!   statistics ([`CycleStats`]), missed samples counted, never used.
@@ -47,7 +48,7 @@ pub use axis::{AxisConfig, Nfv2Axis, DEFAULT_COUNTS_PER_REV};
 pub use bus::Nfv2Bus;
 pub use drive::{DeviceLimits, Drive, DriveConfig, DriveSnapshot, IntentKind};
 pub use error::Nfv2Error;
-pub use framing::{scan_frame, AnswerShape};
+pub use framing::AnswerShape;
 pub use pantilt::sources::SetpointRecord;
 pub use pantilt::targets::{parse_target_line, parse_track, ParseTargetError, TargetPoint};
 pub use pantilt::{HeadAxis, PanTilt, PanTiltConfig, PanTiltError, TrackFeed};

@@ -11,8 +11,10 @@
 //! * [`StatusReply`] (module -> host): the fixed 8-byte status with [`LowStatus`] and
 //!   [`HighStatus`] bits and the 24-bit position.
 //! * [`checksum`]: the 8-bit sum, carry ignored.
-//! * [`CommandStream`] / [`ReplyStream`]: streaming decoders that resynchronise after
-//!   garbage, for a module and for a host.
+//! * [`CommandScanner`] / [`ReplyScanner`]: find a frame at the start of received bytes
+//!   (for the serial bus master), and [`CommandStream`] / [`ReplyStream`]: the streaming
+//!   decoders over them ([`motus_wire::Stream`]) that resynchronise after garbage, for a
+//!   module and for a host.
 //! * [`units`]: speed and acceleration numbers to units/s and units/s^2 (the mapping the
 //!   source lost is chosen and documented there, in one place).
 //!
@@ -34,12 +36,11 @@ mod values;
 
 pub use command::{Command, CommandCode, CommandFrame};
 pub use error::{DecodeError, EncodeError};
+pub use motus_wire::{Stream, StreamStats};
 pub use parameters::{Acceleration, BaudRate, ControlByte, DdaCycle, Parameters};
 pub use reply::StatusReply;
 pub use status::{HighStatus, LowStatus};
-pub use stream::{
-    scan_command, scan_reply, CommandStream, ReplyStream, Scan, Stream, StreamEvent, StreamStats,
-};
+pub use stream::{ChecksumError, CommandScanner, CommandStream, ReplyScanner, ReplyStream, StreamEvent};
 pub use values::{I24, U24};
 
 /// Length in bytes of a status reply (`ADR N LBS HBS BP1 BP2 BP3 CSUM`).

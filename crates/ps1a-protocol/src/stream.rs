@@ -1,188 +1,86 @@
-//! Streaming decoders: bytes arrive in arbitrary chunks (and with garbage, on a noisy
-//! line); frames come out. After any inconsistency the decoder drops one byte and
-//! searches again, so it resynchronises on the next valid frame. It never panics.
+//! Finding PS1A frames in received bytes: the scanners of command frames (a module's side
+//! of the line) and of status replies (the host's side), and their resynchronising stream
+//! decoders ([`motus_wire::Stream`]: after any inconsistency the decoder drops one byte and
+//! searches again, so it resynchronises on the next valid frame; it never panics).
 
 use crate::command::CommandFrame;
 use crate::error::DecodeError;
 use crate::layout::{ADDRESS_INDEX, LENGTH_INDEX};
 use crate::reply::StatusReply;
 use crate::REPLY_LEN;
+use motus_wire::{Scan, Scanner, Stream};
 
-/// What a streaming decoder found.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum StreamEvent<F> {
-    /// A valid frame.
-    Frame(F),
-    /// A frame-shaped byte sequence whose checksum is wrong; `addr` is its first byte
-    /// (a module answers such a frame to its address with the checksum-error bit).
-    ChecksumError {
-        /// First byte of the sequence.
-        addr: u8,
-        /// Sum computed over the received bytes.
-        expected: u8,
-        /// Checksum byte received.
-        received: u8,
-    },
+/// A frame-shaped byte sequence whose checksum is wrong. A module answers such a frame to
+/// its address with the checksum-error bit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ChecksumError {
+    /// First byte of the sequence (the address).
+    pub addr: u8,
+    /// Sum computed over the received bytes.
+    pub expected: u8,
+    /// Checksum byte received.
+    pub received: u8,
 }
 
-/// Outcome of looking for one frame at the start of a buffer.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Scan<F> {
-    /// A frame of `len` bytes.
-    Frame {
-        /// The frame.
-        frame: F,
-        /// Its length.
-        len: usize,
-    },
-    /// More bytes are needed to decide.
-    Incomplete,
-    /// The first byte cannot start a valid frame: drop it. `checksum` is set when the
-    /// bytes had a frame's shape but a wrong checksum.
-    Skip {
-        /// `(addr, expected, received)` for a checksum failure.
-        checksum: Option<(u8, u8, u8)>,
-    },
-}
+/// What a PS1A stream decoder reports.
+pub type StreamEvent<F> = motus_wire::StreamEvent<F, ChecksumError>;
 
-/// Looks for a command frame at the start of `buf`.
-pub fn scan_command(buf: &[u8]) -> Scan<CommandFrame> {
-    let len = match CommandFrame::frame_len_from_header(buf) {
-        Ok(len) => len,
-        Err(DecodeError::TooShort { .. }) => return Scan::Incomplete,
-        Err(_) => return Scan::Skip { checksum: None },
-    };
-    if buf.len() < len {
-        return Scan::Incomplete;
+/// Finds command frames (host -> module).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CommandScanner;
+
+impl Scanner for CommandScanner {
+    type Frame = CommandFrame;
+    type Error = ChecksumError;
+
+    fn scan(&self, buf: &[u8]) -> Scan<CommandFrame, ChecksumError> {
+        let len = match CommandFrame::frame_len_from_header(buf) {
+            Ok(len) => len,
+            Err(DecodeError::TooShort { .. }) => return Scan::Incomplete,
+            Err(_) => return Scan::Skip,
+        };
+        if buf.len() < len {
+            return Scan::Incomplete;
+        }
+        checked(CommandFrame::decode_prefix(buf), len, buf.get(ADDRESS_INDEX))
     }
-    match CommandFrame::decode_prefix(buf) {
+}
+
+/// Finds status replies (module -> host).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ReplyScanner;
+
+impl Scanner for ReplyScanner {
+    type Frame = StatusReply;
+    type Error = ChecksumError;
+
+    fn scan(&self, buf: &[u8]) -> Scan<StatusReply, ChecksumError> {
+        match buf.get(LENGTH_INDEX) {
+            None => return Scan::Incomplete,
+            Some(&5) => {}
+            Some(_) => return Scan::Skip,
+        }
+        if buf.len() < REPLY_LEN {
+            return Scan::Incomplete;
+        }
+        checked(StatusReply::decode_prefix(buf), REPLY_LEN, buf.first())
+    }
+}
+
+/// The scan result of a complete candidate of `len` bytes starting with `addr`.
+fn checked<F>(decoded: Result<F, DecodeError>, len: usize, addr: Option<&u8>) -> Scan<F, ChecksumError> {
+    match decoded {
         Ok(frame) => Scan::Frame { frame, len },
         Err(DecodeError::Checksum { expected, received }) => {
-            Scan::Skip { checksum: Some((buf.get(ADDRESS_INDEX).copied().unwrap_or(0), expected, received)) }
+            Scan::Corrupt(ChecksumError { addr: addr.copied().unwrap_or(0), expected, received })
         }
-        Err(_) => Scan::Skip { checksum: None },
+        Err(_) => Scan::Skip,
     }
 }
 
-/// Looks for a status reply at the start of `buf`.
-pub fn scan_reply(buf: &[u8]) -> Scan<StatusReply> {
-    match buf.get(LENGTH_INDEX) {
-        None => return Scan::Incomplete,
-        Some(&5) => {}
-        Some(_) => return Scan::Skip { checksum: None },
-    }
-    if buf.len() < REPLY_LEN {
-        return Scan::Incomplete;
-    }
-    match StatusReply::decode_prefix(buf) {
-        Ok(frame) => Scan::Frame { frame, len: REPLY_LEN },
-        Err(DecodeError::Checksum { expected, received }) => {
-            Scan::Skip { checksum: Some((buf.first().copied().unwrap_or(0), expected, received)) }
-        }
-        Err(_) => Scan::Skip { checksum: None },
-    }
-}
-
-/// Counters of a streaming decoder.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct StreamStats {
-    /// Valid frames returned.
-    pub frames: u64,
-    /// Bytes dropped while resynchronising.
-    pub garbage_bytes: u64,
-    /// Frame-shaped sequences with a wrong checksum.
-    pub checksum_errors: u64,
-}
-
-/// A resynchronising stream decoder over a scan function.
-#[derive(Debug, Clone)]
-pub struct Stream<F> {
-    buf: Vec<u8>,
-    start: usize,
-    stats: StreamStats,
-    scan: fn(&[u8]) -> Scan<F>,
-    max_frame: usize,
-}
-
-/// Streaming decoder of command frames (the module's side of the line).
-pub type CommandStream = Stream<CommandFrame>;
-/// Streaming decoder of status replies (the host's side of the line).
-pub type ReplyStream = Stream<StatusReply>;
-
-impl CommandStream {
-    /// A decoder for host -> module traffic.
-    pub fn commands() -> Self {
-        Stream::with_scanner(scan_command, crate::MAX_COMMAND_LEN)
-    }
-}
-
-impl ReplyStream {
-    /// A decoder for module -> host traffic.
-    pub fn replies() -> Self {
-        Stream::with_scanner(scan_reply, REPLY_LEN)
-    }
-}
-
-impl<F> Stream<F> {
-    fn with_scanner(scan: fn(&[u8]) -> Scan<F>, max_frame: usize) -> Self {
-        Stream { buf: Vec::with_capacity(256), start: 0, stats: StreamStats::default(), scan, max_frame }
-    }
-
-    /// Appends received bytes.
-    pub fn push(&mut self, bytes: &[u8]) {
-        if self.start > 0 && self.start >= self.buf.len() / 2 {
-            self.buf.drain(..self.start);
-            self.start = 0;
-        }
-        self.buf.extend_from_slice(bytes);
-    }
-
-    /// The next event, or `None` when more bytes are needed.
-    pub fn next_event(&mut self) -> Option<StreamEvent<F>> {
-        loop {
-            let pending = self.buf.get(self.start..).unwrap_or(&[]);
-            if pending.is_empty() {
-                return None;
-            }
-            match (self.scan)(pending) {
-                Scan::Frame { frame, len } => {
-                    self.start += len;
-                    self.stats.frames += 1;
-                    return Some(StreamEvent::Frame(frame));
-                }
-                Scan::Incomplete => return None,
-                Scan::Skip { checksum } => {
-                    self.start += 1;
-                    if let Some((addr, expected, received)) = checksum {
-                        self.stats.checksum_errors += 1;
-                        return Some(StreamEvent::ChecksumError { addr, expected, received });
-                    }
-                    self.stats.garbage_bytes += 1;
-                }
-            }
-        }
-    }
-
-    /// Drops buffered bytes (e.g. after an idle gap on the line: a partial frame will not
-    /// be completed). Counted as garbage.
-    pub fn clear(&mut self) {
-        self.stats.garbage_bytes += self.pending_len() as u64;
-        self.buf.clear();
-        self.start = 0;
-    }
-
-    /// Bytes waiting for a decision.
-    pub fn pending_len(&self) -> usize {
-        self.buf.len().saturating_sub(self.start)
-    }
-
-    /// Longest frame this decoder accepts.
-    pub fn max_frame_len(&self) -> usize {
-        self.max_frame
-    }
-
-    /// Counters.
-    pub fn stats(&self) -> StreamStats {
-        self.stats
-    }
-}
+/// Streaming decoder of command frames (the module's side of the line):
+/// `CommandStream::default()`.
+pub type CommandStream = Stream<CommandScanner>;
+/// Streaming decoder of status replies (the host's side of the line):
+/// `ReplyStream::default()`.
+pub type ReplyStream = Stream<ReplyScanner>;

@@ -125,7 +125,7 @@ fn stream_resynchronises_after_garbage() {
     bytes.extend_from_slice(&good);
     bytes.extend_from_slice(&[0x03, 0x00, 0x00, 0x09]); // bad checksum
     bytes.extend_from_slice(&frame(3, Command::Stop));
-    let mut s = CommandStream::commands();
+    let mut s = CommandStream::default();
     for chunk in bytes.chunks(3) {
         s.push(chunk);
     }
@@ -141,7 +141,7 @@ fn stream_resynchronises_after_garbage() {
         })
         .collect();
     assert_eq!(frames, vec![Command::MoveAbsolute { target: U24::new(1000).unwrap() }, Command::Stop]);
-    assert!(events.contains(&StreamEvent::ChecksumError { addr: 3, expected: 3, received: 9 }));
+    assert!(events.contains(&StreamEvent::Corrupt(ChecksumError { addr: 3, expected: 3, received: 9 })));
 }
 
 #[test]
@@ -225,10 +225,10 @@ proptest! {
     fn decoders_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..40)) {
         let _ = CommandFrame::decode(&bytes);
         let _ = StatusReply::decode(&bytes);
-        let mut s = CommandStream::commands();
+        let mut s = CommandStream::default();
         s.push(&bytes);
         while s.next_event().is_some() {}
-        let mut r = ReplyStream::replies();
+        let mut r = ReplyStream::default();
         r.push(&bytes);
         while r.next_event().is_some() {}
     }
@@ -249,7 +249,7 @@ proptest! {
             bytes.extend_from_slice(&r.to_bytes());
             want.push(r);
         }
-        let mut s = ReplyStream::replies();
+        let mut s = ReplyStream::default();
         let mut got = vec![];
         for c in bytes.chunks(chunk) {
             s.push(c);

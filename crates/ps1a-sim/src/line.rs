@@ -1,21 +1,24 @@
-//! Serving several modules on one serial link.
+//! Serving several modules on one serial link, with the serial simulators' one loop
+//! ([`SimServer`]).
 //!
-//! The line decodes every command with a resynchronising stream decoder; the module
-//! whose address matches answers, the others stay silent (as on a real multi-drop line).
-//! Options model the real line: **pacing** (a command takes its wire time to arrive and
-//! the reply leaves byte by byte at the baud rate) and **faults** (dropped replies,
-//! corrupted bytes in both directions).
+//! The line decodes every command with the codec's resynchronising [`CommandStream`]
+//! (a quiet line ends a command: a half-received one is dropped); the module whose address
+//! matches answers, the others stay silent (as on a real multi-drop line); a command with
+//! a bad checksum is answered by its module with the checksum-error bit. Options model the
+//! real line: **pacing** (a command takes its wire time to arrive and the reply leaves byte
+//! by byte at the baud rate) and **faults** (dropped replies, corrupted bytes in both
+//! directions).
+//!
+//! [`CommandStream`]: motus_ps1a_protocol::CommandStream
 
 use crate::machine::MachineConfig;
 use crate::module::Module;
 use crate::state_file::{ModuleState, StateFile, StateFileError};
 use crate::state_writer::StateWriter;
-use motus_ps1a_protocol::{CommandStream, Parameters, StreamEvent, REPLY_LEN};
-use motus_serial::{FaultConfig, FaultInjector, Link, Paced};
-use rand::rngs::SmallRng;
-use rand::{Rng, SeedableRng};
+use motus_ps1a_protocol::{ChecksumError, CommandFrame, CommandScanner, Parameters};
+use motus_serial::{Answer, FaultConfig, Link, Responder, ServeOptions, SimServer};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 /// Options of a simulated line.
@@ -34,26 +37,18 @@ pub struct LineOptions {
 }
 
 /// Errors starting a simulated line.
-#[derive(Debug, thiserror::Error)]
-pub enum LineError {
-    /// Bad options.
-    #[error("invalid simulator options: {0}")]
-    Options(String),
-    /// State file failure.
-    #[error(transparent)]
-    State(#[from] StateFileError),
-}
+pub type LineError = motus_serial::LineError<StateFileError>;
 
 /// Up to 16 simulated modules serving one link.
 pub struct SimLine {
+    server: SimServer<CommandScanner>,
+    modules: Modules,
+}
+
+/// The modules of the line and their state file: what answers the host.
+struct Modules {
     modules: Vec<Module>,
-    link: Box<dyn Link>,
-    stream: CommandStream,
-    options: LineOptions,
-    start: Instant,
-    rx_rng: SmallRng,
     last_save: Instant,
-    frames_served: u64,
     saved_positions: Vec<f64>,
     /// Writes the state file off the serving loop (`None`: no state file).
     writer: Option<StateWriter>,
@@ -101,26 +96,18 @@ impl SimLine {
                 }
             })
             .collect();
-        let mut link = link;
-        if options.faults.drop_rate > 0.0 || options.faults.corrupt_rate > 0.0 {
-            link = Box::new(FaultInjector::new(link, options.faults));
-        }
-        if options.baud_pacing {
-            link = Box::new(Paced::new(link));
-        }
-        let rx_rng = SmallRng::seed_from_u64(options.faults.seed ^ 0x5eed);
+        let serve = ServeOptions {
+            baud_pacing: options.baud_pacing,
+            faults: options.faults,
+            poll: Duration::from_millis(10),
+            flush_when_idle: true,
+        };
+        let server =
+            SimServer::new(link, CommandScanner, serve).map_err(|e| LineError::Options(e.to_string()))?;
         let writer = options.state_file.clone().map(StateWriter::spawn).transpose()?;
         let mut line = SimLine {
-            modules,
-            link,
-            stream: CommandStream::commands(),
-            options,
-            start: Instant::now(),
-            rx_rng,
-            last_save: Instant::now(),
-            frames_served: 0,
-            saved_positions: Vec::new(),
-            writer,
+            server,
+            modules: Modules { modules, last_save: Instant::now(), saved_positions: Vec::new(), writer },
         };
         line.save()?;
         Ok(line)
@@ -128,25 +115,34 @@ impl SimLine {
 
     /// The modules (for tests and status displays).
     pub fn modules(&self) -> &[Module] {
-        &self.modules
+        &self.modules.modules
     }
 
     /// Mutable access to the modules (fault injection in tests).
     pub fn modules_mut(&mut self) -> &mut [Module] {
-        &mut self.modules
+        &mut self.modules.modules
     }
 
-    /// Commands answered so far.
-    pub fn frames_served(&self) -> u64 {
-        self.frames_served
-    }
-
-    fn now(&self) -> Duration {
-        self.start.elapsed()
+    /// The serve loop (answers sent, the command decoder's statistics, simulated time).
+    pub fn server(&self) -> &SimServer<CommandScanner> {
+        &self.server
     }
 
     /// Writes the state file (if any) and returns once it is on disk.
     pub fn save(&mut self) -> Result<(), StateFileError> {
+        self.modules.save()
+    }
+
+    /// Serves the line until `stop` is set.
+    pub fn run(&mut self, stop: &AtomicBool) -> std::io::Result<()> {
+        self.server.run(&mut self.modules, stop)?;
+        self.save().map_err(std::io::Error::other)
+    }
+}
+
+impl Modules {
+    /// Writes the state file (if any) and returns once it is on disk.
+    fn save(&mut self) -> Result<(), StateFileError> {
         self.save_in_background()?;
         self.writer.as_ref().map_or(Ok(()), StateWriter::flush)
     }
@@ -172,87 +168,34 @@ impl SimLine {
         writer.submit(state)
     }
 
-    /// Serves the line until `stop` is set.
-    pub fn run(&mut self, stop: &AtomicBool) -> std::io::Result<()> {
-        let line = self.link.line();
-        let char_time = line.char_time();
-        let idle_gap = (char_time * 3).max(Duration::from_millis(2));
-        let mut buf = [0u8; 256];
-        let mut first_byte_at: Option<Instant> = None;
-        let mut last_byte_at = Instant::now();
-        while !stop.load(Ordering::Relaxed) {
-            let n = self.link.read(&mut buf, Duration::from_millis(10))?;
-            let now_i = Instant::now();
-            if n == 0 {
-                if self.stream.pending_len() > 0 && now_i - last_byte_at > idle_gap {
-                    self.stream.clear();
-                    first_byte_at = None;
-                }
-                self.tick()?;
-                continue;
-            }
-            if self.stream.pending_len() == 0 || now_i - last_byte_at > idle_gap {
-                if now_i - last_byte_at > idle_gap {
-                    self.stream.clear();
-                }
-                first_byte_at = Some(now_i);
-            }
-            last_byte_at = now_i;
-            let data = buf.get_mut(..n).unwrap_or(&mut []);
-            if self.options.faults.corrupt_rate > 0.0 {
-                for b in data.iter_mut() {
-                    if self.rx_rng.gen_bool(self.options.faults.corrupt_rate.clamp(0.0, 1.0)) {
-                        *b ^= self.rx_rng.gen_range(1..=255u8);
-                    }
-                }
-            }
-            self.stream.push(data);
-            while let Some(event) = self.stream.next_event() {
-                let frame_len;
-                let now = self.now();
-                let reply = match event {
-                    StreamEvent::Frame(f) => {
-                        frame_len = f.command.frame_len();
-                        self.modules
-                            .iter_mut()
-                            .find(|m| m.address() == f.addr)
-                            .map(|m| m.handle(&f.command, now))
-                    }
-                    StreamEvent::ChecksumError { addr, .. } => {
-                        frame_len = REPLY_LEN;
-                        self.modules.iter_mut().find(|m| m.address() == addr).map(|m| m.checksum_error(now))
-                    }
-                };
-                let Some(reply) = reply else { continue };
-                if self.options.baud_pacing {
-                    // The command's last byte arrives one wire time after its first.
-                    if let Some(t0) = first_byte_at {
-                        motus_serial::sleep_until(t0 + line.wire_time(frame_len));
-                    }
-                }
-                self.link.write_all(&reply.to_bytes())?;
-                self.frames_served += 1;
-                first_byte_at = None;
-            }
-            if self.stream.pending_len() == 0 {
-                first_byte_at = None;
-            }
-            if self.modules.iter_mut().any(|m| m.take_eeprom_dirty()) {
-                self.save_in_background().map_err(std::io::Error::other)?;
-            }
-        }
-        self.tick()?;
-        self.save().map_err(std::io::Error::other)
+    fn module(&mut self, addr: u8) -> Option<&mut Module> {
+        self.modules.iter_mut().find(|m| m.address() == addr)
+    }
+}
+
+impl Responder for Modules {
+    type Frame = CommandFrame;
+    type Error = ChecksumError;
+
+    fn respond(&mut self, frame: CommandFrame, now: Duration) -> Option<Answer> {
+        let reply = self.module(frame.addr)?.handle(&frame.command, now);
+        Some(Answer { bytes: reply.to_bytes().to_vec(), delay: Duration::ZERO })
     }
 
-    fn tick(&mut self) -> std::io::Result<()> {
-        let now = self.now();
+    /// The addressed module answers with the checksum-error bit.
+    fn corrupt(&mut self, error: ChecksumError, now: Duration) -> Option<Answer> {
+        let reply = self.module(error.addr)?.checksum_error(now);
+        Some(Answer { bytes: reply.to_bytes().to_vec(), delay: Duration::ZERO })
+    }
+
+    fn tick(&mut self, now: Duration) -> std::io::Result<()> {
         for m in &mut self.modules {
             m.advance_to(now);
         }
         let moved =
             self.modules.iter().map(Module::machine_position).ne(self.saved_positions.iter().copied());
-        if moved && self.last_save.elapsed() > Duration::from_millis(200) {
+        let eeprom = self.modules.iter_mut().any(|m| m.take_eeprom_dirty());
+        if eeprom || (moved && self.last_save.elapsed() > Duration::from_millis(200)) {
             self.save_in_background().map_err(std::io::Error::other)?;
         }
         Ok(())

@@ -9,16 +9,15 @@ use criterion::{Criterion, Throughput};
 use motus_ps1a::Ps1aBus;
 use motus_ps1a_protocol::Command;
 use motus_ps1a_sim::{LineOptions, SimLine};
-use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink};
-use std::sync::atomic::{AtomicBool, Ordering};
+use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink, ServeThread};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 struct Rig {
+    /// Stops serving first (dropped first), before the folder of its pty goes.
+    _line: ServeThread<SimLine>,
     _dir: tempfile::TempDir,
     bus: Ps1aBus,
-    stop: Arc<AtomicBool>,
-    thread: Option<std::thread::JoinHandle<()>>,
 }
 
 impl Rig {
@@ -26,26 +25,15 @@ impl Rig {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("line");
         let pty = PtyLink::create(Some(&path), LineSettings::n81(baud)).unwrap();
-        let mut line = SimLine::new(
+        let line = SimLine::new(
             Box::new(pty),
             LineOptions { addresses: addresses.to_vec(), baud_pacing: pacing, ..LineOptions::default() },
         )
         .unwrap();
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || line.run(&flag).unwrap());
+        let line = ServeThread::spawn("ps1a-sim", line, SimLine::run).unwrap();
         let link = SerialLink::open(path.to_str().unwrap(), baud).unwrap();
         let bus = Ps1aBus::new(Arc::new(BusMaster::new(Box::new(link), BusConfig::default())));
-        Rig { _dir: dir, bus, stop, thread: Some(thread) }
-    }
-}
-
-impl Drop for Rig {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
+        Rig { _dir: dir, bus, _line: line }
     }
 }
 

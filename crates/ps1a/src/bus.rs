@@ -1,9 +1,9 @@
 //! PS1A transactions on a shared bus master.
 
 use motus_ps1a_protocol::{
-    scan_reply, Command, CommandFrame, LowStatus, Parameters, Scan, StatusReply, REPLY_LEN,
+    Command, CommandFrame, LowStatus, Parameters, ReplyScanner, StatusReply, REPLY_LEN,
 };
-use motus_serial::{BusError, BusMaster, FrameScan, Request};
+use motus_serial::{BusError, BusMaster, Request};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -29,14 +29,6 @@ pub enum Ps1aError {
 #[derive(Clone)]
 pub struct Ps1aBus {
     master: Arc<BusMaster>,
-}
-
-fn framing(buf: &[u8]) -> FrameScan<StatusReply> {
-    match scan_reply(buf) {
-        Scan::Frame { frame, len } => FrameScan::Frame { frame, len },
-        Scan::Incomplete => FrameScan::Incomplete,
-        Scan::Skip { checksum } => FrameScan::Skip { corrupt: checksum.is_some() },
-    }
 }
 
 impl Ps1aBus {
@@ -66,7 +58,7 @@ impl Ps1aBus {
         };
         let attempts = 1 + self.master.config().retries;
         for _ in 0..attempts {
-            let reply = self.master.transact(&request, &framing, |r: &StatusReply| r.addr == addr)?;
+            let reply = self.master.transact(&request, &ReplyScanner, |r: &StatusReply| r.addr == addr)?;
             if !reply.low.has(LowStatus::CHECKSUM_ERROR) {
                 return Ok(reply);
             }
@@ -83,7 +75,8 @@ impl Ps1aBus {
             let frame = CommandFrame::new(addr, Command::StatusRequest).encode();
             let request =
                 Request { device: u32::from(addr), bytes: &frame, reply_len: REPLY_LEN, idempotent: false };
-            if let Ok(reply) = self.master.transact(&request, &framing, |r: &StatusReply| r.addr == addr) {
+            if let Ok(reply) = self.master.transact(&request, &ReplyScanner, |r: &StatusReply| r.addr == addr)
+            {
                 found.push((addr, reply));
             }
         }

@@ -1,9 +1,9 @@
 //! The three wheel drives over CANopen / CiA 402.
 
 use motus_canopen::{Master, MasterEvent, NmtState};
-use motus_canopen_protocol::cia402::sw;
 use motus_cia402::group::{self, GroupMove};
 use motus_cia402::{CanopenDrive, Drive, DriveError, DriveIo, DriveSettings, MasterSync, Profile};
+use motus_cia402_protocol::sw;
 use motus_omni::controller::WheelDrives;
 use motus_omni::sync_profile::WheelProfile;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -138,7 +138,7 @@ impl CanopenWheels {
         self.each(|d| {
             d.fault_reset()?;
             d.enable()?;
-            d.set_mode(motus_canopen_protocol::cia402::Mode::ProfilePosition)
+            d.set_mode(motus_cia402_protocol::Mode::ProfilePosition)
         })?;
         if let Ok(mut s) = self.stopped.lock() {
             *s = None;

@@ -197,4 +197,22 @@ mod tests {
         // thrower starts at -4000 + 3000 sin(π/2) = -1000 units = -10 000 raw.
         assert!((d[4].1.initial_position + 10_000.0).abs() < 1e-6);
     }
+
+    /// The shipped drive-parameter file describes these simulated drives: node ids from the
+    /// rules, a_stop their braking and the acceleration limits their acceleration (raw units),
+    /// encoder scaling the axis's raw_per_unit.
+    #[test]
+    fn the_shipped_drive_parameters_are_the_simulated_drives() {
+        let rules = RuleSet::from_toml(JUGGLER_TOML).unwrap();
+        let file = motus_safety::DrivesFile::from_toml(motus_safety::JUGGLER_DRIVES_TOML).unwrap();
+        let sim = drives(&rules, Pattern::Juggle, None);
+        assert_eq!(file.drive.len(), sim.len());
+        for ((axis, (node, params)), d) in rules.axes().iter().zip(&sim).zip(&file.drive) {
+            assert_eq!(d.axis, axis.name);
+            assert_eq!(d.node_id, u32::from(*node));
+            assert_eq!(d.a_stop, params.brake_decel, "{}", d.axis);
+            assert_eq!(d.accel_limits, [params.max_accel; 4], "{}", d.axis);
+            assert_eq!(d.encoder_scaling, axis.raw_per_unit, "{}", d.axis);
+        }
+    }
 }

@@ -14,12 +14,20 @@
 //!   applies the decision through a [`motus_safety::Fanout`] (the lease target plus any axes of
 //!   the axis model), checks the configuration's integrity, and records the reaction time
 //!   from the reception of the frame to the moment the stop left Motus.
+//!   [`runner::OnlineSupervisor::run`] is the one supervisor loop (`motus safety run`, the
+//!   station's juggler, the tests): a link, a channel of [`runner::Command`]s (operator stop
+//!   and reset, integrity results, approved rules), a stop flag and an event callback.
+//! * [`watcher`]: [`watcher::IntegrityWatcher`], the one integrity watcher: a thread that
+//!   re-checks the approved configuration files ([`motus_safety::ConfigFiles::check`]) and
+//!   sends the results into the loop's channel.
 
 pub mod inputs;
 pub mod juggler;
 pub mod lease;
 pub mod runner;
+pub mod watcher;
 
 pub use inputs::{InputError, InputMap};
 pub use lease::EplLeaseTarget;
-pub use runner::{OnlineConfig, OnlineEvent, OnlineSupervisor, ReactionStats};
+pub use runner::{Command, OnlineConfig, OnlineEvent, OnlineSupervisor, ReactionStats, ServeEvent};
+pub use watcher::{InputsFor, IntegrityWatcher};

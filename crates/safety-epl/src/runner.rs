@@ -10,6 +10,7 @@
 use std::io;
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
 use motus_epl::sim::Percentiles;
@@ -56,6 +57,44 @@ pub enum OnlineEvent {
         /// Targets that failed to stop.
         errors: Vec<String>,
     },
+}
+
+/// A command to a running supervisor ([`OnlineSupervisor::run`]), sent through its channel
+/// by the operator (`motus safety run`'s standard input, the station's stop and reset), by
+/// the [`crate::IntegrityWatcher`], or by the station installing an administrator's rules.
+#[derive(Debug)]
+pub enum Command {
+    /// Operator stop: every target stops now ([`OnlineSupervisor::stop_all`]).
+    StopAll,
+    /// Operator reset after a stop (manual restart; [`OnlineSupervisor::reset`]).
+    Reset,
+    /// A fresh integrity check of the configuration (`Err` names what is wrong).
+    Integrity(Result<(), String>),
+    /// New approved rules: every target is stopped and held until a reset
+    /// ([`OnlineSupervisor::replace_rules`]); ignored when they equal the running rules.
+    Rules {
+        /// The rules.
+        rules: Box<RuleSet>,
+        /// Their inputs (the segment's value map for the rules' nodes).
+        inputs: Box<InputMap>,
+    },
+}
+
+/// What [`OnlineSupervisor::run`] reports to its caller.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ServeEvent {
+    /// SafeToRun changed, or the targets were stopped.
+    Online(OnlineEvent),
+    /// The integrity result changed (`Err` names what is wrong).
+    Integrity(Result<(), String>),
+    /// New rules were installed (the targets are stopped and held).
+    RulesInstalled,
+    /// An operator reset was applied.
+    Reset,
+    /// An operator stop was applied.
+    Stopped,
+    /// The end of one pass of the loop (a frame, or `poll` without one).
+    Pass,
 }
 
 /// Reaction times collected by an [`OnlineSupervisor`].
@@ -265,33 +304,170 @@ impl OnlineSupervisor {
         self.safe = Some(false);
     }
 
-    /// Reads frames from `link` until `stop` is set or `on_event` breaks; `poll` bounds the
-    /// time between lease checks.
+    /// The outcome of the last integrity check (`Err` names what is wrong).
+    pub fn integrity(&self) -> &Result<(), String> {
+        &self.integrity
+    }
+
+    /// Applies one command (see [`Command`]); returns what to report, if anything.
+    pub fn apply(&mut self, command: Command) -> Option<ServeEvent> {
+        match command {
+            Command::StopAll => {
+                self.stop_all();
+                Some(ServeEvent::Stopped)
+            }
+            Command::Reset => {
+                self.reset();
+                Some(ServeEvent::Reset)
+            }
+            Command::Integrity(result) => {
+                let changed = result != self.integrity;
+                self.set_integrity(result);
+                changed.then(|| ServeEvent::Integrity(self.integrity.clone()))
+            }
+            Command::Rules { rules, inputs } => {
+                if rules.config() == self.supervisor.rules().config() {
+                    return None;
+                }
+                tracing::warn!("safety supervisor: new rules installed, drives stopped and held");
+                self.replace_rules(*rules, *inputs);
+                Some(ServeEvent::RulesInstalled)
+            }
+        }
+    }
+
+    /// The supervisor loop, the only one (`motus safety run`, the station's juggler, the
+    /// tests): until `stop` is set or `on_event` breaks, applies the pending `commands`
+    /// (operator stop and reset, integrity results, approved rules), then reads one frame
+    /// from `link` (waiting at most `poll`) and evaluates it ([`OnlineSupervisor::on_frame`]),
+    /// or checks the lease when none came ([`OnlineSupervisor::tick`]). Every event goes to
+    /// `on_event`, and [`ServeEvent::Pass`] ends every pass (where a caller publishes its
+    /// state: it must not block, the lease is renewed from this thread). The thread is
+    /// promoted to the cyclic real-time class. A link error stops every target and is
+    /// returned; on `stop` the targets are left as they are (the caller stops them, or lets
+    /// the lease expire).
+    ///
+    /// # Errors
+    /// The link failed.
     pub fn run(
         &mut self,
         link: &dyn EthLink,
+        commands: &Receiver<Command>,
         stop: &AtomicBool,
         poll: Duration,
-        mut on_event: impl FnMut(&mut Self, &OnlineEvent) -> ControlFlow<()>,
+        mut on_event: impl FnMut(&Self, &ServeEvent) -> ControlFlow<()>,
     ) -> io::Result<()> {
         // The lease must be renewed every cycle: this loop is cyclic work (a no-op unless the
         // binary set a real-time policy).
         motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
         let mut buf = vec![0u8; motus_epl::transport::MAX_FRAME];
         while !stop.load(Ordering::Relaxed) {
-            let event = match link.recv(&mut buf, poll)? {
-                Some((n, at)) => {
+            while let Ok(command) = commands.try_recv() {
+                if let Some(e) = self.apply(command) {
+                    if on_event(self, &e).is_break() {
+                        return Ok(());
+                    }
+                }
+            }
+            let event = match link.recv(&mut buf, poll) {
+                Ok(Some((n, at))) => {
                     let e = self.on_frame(buf.get(..n).unwrap_or(&[]), at);
                     e.or_else(|| self.tick(Instant::now()))
                 }
-                None => self.tick(Instant::now()),
+                Ok(None) => self.tick(Instant::now()),
+                Err(e) => {
+                    tracing::error!(error = %e, "safety supervisor: link failed, stopping every drive");
+                    self.stop_all();
+                    return Err(e);
+                }
             };
             if let Some(e) = event {
-                if on_event(self, &e).is_break() {
+                if on_event(self, &ServeEvent::Online(e)).is_break() {
                     break;
                 }
             }
+            if on_event(self, &ServeEvent::Pass).is_break() {
+                break;
+            }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
+    use super::*;
+    use crate::{juggler, EplLeaseTarget};
+    use motus_safety::JUGGLER_TOML;
+    use std::sync::mpsc::channel;
+    use std::sync::Arc;
+
+    fn inputs(rules: &RuleSet) -> InputMap {
+        InputMap::new(rules, juggler::value_map(rules), 0x10).unwrap()
+    }
+
+    #[test]
+    fn run_applies_commands_in_order_and_reports_changes_only() {
+        let link = motus_epl::open_link(&format!("mem://runner-test-{}", std::process::id()), true).unwrap();
+        let rules = RuleSet::from_toml(JUGGLER_TOML).unwrap();
+        let origin = Instant::now();
+        let target = EplLeaseTarget::new(
+            Arc::clone(&link),
+            origin,
+            Duration::from_millis(20),
+            Duration::from_millis(1),
+            [0; 8],
+        );
+        let mut sup = OnlineSupervisor::new(
+            rules.clone(),
+            inputs(&rules),
+            vec![Box::new(target)],
+            origin,
+            OnlineConfig::default(),
+        );
+        let changed =
+            RuleSet::from_toml(&JUGGLER_TOML.replace("max_sample_age = 3 ", "max_sample_age = 2 ")).unwrap();
+        let (tx, rx) = channel();
+        tx.send(Command::StopAll).unwrap();
+        tx.send(Command::Integrity(Err("drive[thrower].a_stop: 1.0 -> 2.0".into()))).unwrap();
+        tx.send(Command::Integrity(Err("drive[thrower].a_stop: 1.0 -> 2.0".into()))).unwrap();
+        tx.send(Command::Rules { rules: Box::new(rules.clone()), inputs: Box::new(inputs(&rules)) }).unwrap();
+        tx.send(Command::Rules { rules: Box::new(changed.clone()), inputs: Box::new(inputs(&changed)) })
+            .unwrap();
+        tx.send(Command::Reset).unwrap();
+        let stop = AtomicBool::new(false);
+        let mut seen = Vec::new();
+        sup.run(&*link, &rx, &stop, Duration::from_millis(1), |_, e| {
+            if *e == ServeEvent::Pass {
+                return ControlFlow::Continue(());
+            }
+            seen.push(e.clone());
+            if *e == ServeEvent::Reset {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        })
+        .unwrap();
+        assert_eq!(
+            seen,
+            [
+                ServeEvent::Stopped,
+                ServeEvent::Integrity(Err("drive[thrower].a_stop: 1.0 -> 2.0".into())),
+                ServeEvent::RulesInstalled,
+                ServeEvent::Reset,
+            ]
+        );
+        assert_eq!(sup.supervisor().rules().config().supervisor.max_sample_age, 2);
+        assert!(
+            sup.integrity().as_ref().unwrap_err().contains("new rules installed"),
+            "{:?}",
+            sup.integrity()
+        );
+        assert!(sup.stops() >= 1);
+        // The stop flag ends the loop too (a pass without frames, then the flag).
+        stop.store(true, Ordering::Relaxed);
+        sup.run(&*link, &rx, &stop, Duration::from_millis(1), |_, _| ControlFlow::Continue(())).unwrap();
     }
 }

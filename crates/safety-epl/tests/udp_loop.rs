@@ -4,6 +4,7 @@
 
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{channel, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -12,7 +13,9 @@ use motus_epl::{EthLink, Monitor, MonitorConfig, UdpHub};
 use motus_epl_protocol::Value;
 use motus_safety::{RuleSet, JUGGLER_TOML};
 use motus_safety_epl::juggler::{self, Pattern};
-use motus_safety_epl::{EplLeaseTarget, InputMap, OnlineConfig, OnlineEvent, OnlineSupervisor};
+use motus_safety_epl::{
+    Command, EplLeaseTarget, InputMap, OnlineConfig, OnlineEvent, OnlineSupervisor, ServeEvent,
+};
 
 /// Per cycle: (thrower raw position, every speed, every status word).
 type Trace = Arc<Mutex<Vec<(i32, Vec<i32>, Vec<u16>)>>>;
@@ -21,7 +24,8 @@ struct Rig {
     _segment: Segment,
     stop_sup: Arc<AtomicBool>,
     sup: Option<std::thread::JoinHandle<OnlineSupervisor>>,
-    events: Arc<Mutex<Vec<OnlineEvent>>>,
+    commands: Sender<Command>,
+    events: Arc<Mutex<Vec<ServeEvent>>>,
     stop_mon: Arc<AtomicBool>,
     trace: Trace,
 }
@@ -101,11 +105,14 @@ fn rig(pattern: Pattern, restart: motus_safety::Restart) -> Rig {
     sup.set_integrity(Ok(()));
     let stop_sup = Arc::new(AtomicBool::new(false));
     let events = Arc::new(Mutex::new(Vec::new()));
+    let (commands, rx) = channel();
     let handle = {
         let (stop, events) = (Arc::clone(&stop_sup), Arc::clone(&events));
         std::thread::spawn(move || {
-            sup.run(&*sup_link, &stop, Duration::from_millis(1), |_, e| {
-                events.lock().unwrap().push(e.clone());
+            sup.run(&*sup_link, &rx, &stop, Duration::from_millis(1), |_, e| {
+                if *e != ServeEvent::Pass {
+                    events.lock().unwrap().push(e.clone());
+                }
                 ControlFlow::Continue(())
             })
             .unwrap();
@@ -114,7 +121,7 @@ fn rig(pattern: Pattern, restart: motus_safety::Restart) -> Rig {
     };
     let segment = b.start().unwrap();
     assert!(segment.wait_operational(Duration::from_secs(10)), "MN state {}", segment.mn_state());
-    Rig { _segment: segment, stop_sup, sup: Some(handle), events, stop_mon, trace }
+    Rig { _segment: segment, stop_sup, sup: Some(handle), commands, events, stop_mon, trace }
 }
 
 impl Drop for Rig {
@@ -133,7 +140,9 @@ fn student_program_beyond_the_limit_is_stopped_before_the_limit() {
     std::thread::sleep(Duration::from_millis(1500));
     let events = rig.events.lock().unwrap().clone();
     let first_stop = events.iter().find_map(|e| match e {
-        OnlineEvent::Unsafe { diagnosis, reaction: Some(r), .. } if diagnosis.contains("limits_thrower") => {
+        ServeEvent::Online(OnlineEvent::Unsafe { diagnosis, reaction: Some(r), .. })
+            if diagnosis.contains("limits_thrower") =>
+        {
             Some((diagnosis.clone(), *r))
         }
         _ => None,
@@ -148,6 +157,31 @@ fn student_program_beyond_the_limit_is_stopped_before_the_limit() {
     let last = trace.last().unwrap();
     assert!(last.1.iter().all(|v| *v == 0), "speeds {:?}", last.1);
     assert!(last.2.iter().all(|s| s & motus_epl::sim::pdo::STATUS_LEASE_STOP != 0), "{:?}", last.2);
+    // The operator's reset goes through the loop's command channel: applied, the drives run
+    // again (safe, no longer held), and the program is stopped again by a rule.
+    let n = rig.events.lock().unwrap().len();
+    rig.commands.send(Command::Reset).unwrap();
+    let t0 = Instant::now();
+    loop {
+        let after = rig.events.lock().unwrap()[n..].to_vec();
+        let released = after.iter().position(|e| *e == ServeEvent::Reset).and_then(|i| {
+            after[i..]
+                .iter()
+                .position(|e| matches!(e, ServeEvent::Online(OnlineEvent::Safe { held: false, .. })))
+                .map(|j| i + j)
+        });
+        let stopped_again = released.is_some_and(|i| {
+            after[i..].iter().any(|e| {
+                matches!(e, ServeEvent::Online(OnlineEvent::Unsafe { diagnosis, reaction: Some(_), .. })
+                    if diagnosis.starts_with("rule "))
+            })
+        });
+        if stopped_again {
+            break;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(20), "no reset, run and stop: {after:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
     let sup = {
         rig.stop_sup.store(true, Ordering::Relaxed);
         rig.sup.take().unwrap().join().unwrap()
@@ -172,7 +206,9 @@ fn juggling_runs_and_drives_stop_on_their_own_when_the_supervisor_dies() {
         .unwrap()
         .iter()
         .filter_map(|e| match e {
-            OnlineEvent::Unsafe { diagnosis, cycle, .. } => Some(format!("{cycle}: {diagnosis}")),
+            ServeEvent::Online(OnlineEvent::Unsafe { diagnosis, cycle, .. }) => {
+                Some(format!("{cycle}: {diagnosis}"))
+            }
             _ => None,
         })
         .collect::<Vec<_>>();

@@ -29,7 +29,7 @@ use motus_epl::EthLink;
 use motus_epl_protocol::{EplFrame, Flags, MacAddr, Message, NmtState, PRes, PrRs, SafetyLease, Soc};
 use motus_safety::{RuleSet, JUGGLER_TOML};
 use motus_safety_epl::juggler;
-use motus_safety_epl::{EplLeaseTarget, InputMap, OnlineConfig, OnlineEvent, OnlineSupervisor};
+use motus_safety_epl::{EplLeaseTarget, InputMap, OnlineConfig, OnlineEvent, OnlineSupervisor, ServeEvent};
 
 const EVENTS: usize = 10_000;
 
@@ -119,8 +119,10 @@ fn reaction_time_over_10000_unsafe_events_on_veth() {
             // a safe cycle and its unsafe PRes for longer than the lease (a loaded host): that
             // expiry stops the drives and its revoke answers the event. Counted, not hidden.
             let mut expiries = 0usize;
-            sup.run(&*sup_link, &stop, Duration::from_millis(5), |_, e| {
-                if matches!(e, OnlineEvent::Unsafe { reaction: None, diagnosis, .. } if diagnosis.contains("lease expired")) {
+            // No operator here: the command channel stays empty.
+            let (_commands, rx) = std::sync::mpsc::channel();
+            sup.run(&*sup_link, &rx, &stop, Duration::from_millis(5), |_, e| {
+                if matches!(e, ServeEvent::Online(OnlineEvent::Unsafe { reaction: None, diagnosis, .. }) if diagnosis.contains("lease expired")) {
                     expiries += 1;
                 }
                 ControlFlow::Continue(())

@@ -1,6 +1,6 @@
 //! Predictive collision supervisor for servo machines (the juggler's `SafeToRun`),
-//! after specs/juggler-safety.md. Pure and protocol-independent: no IO and no clocks;
-//! samples and time are passed in.
+//! after specs/juggler-safety.md. Protocol-independent and without clocks (samples and time
+//! are passed in); only [`config_files`] touches the file system.
 //!
 //! - [`model`]: axis models and their validation.
 //! - [`predict`]: reachable positions until standstill (worst-case acceleration during the
@@ -12,6 +12,9 @@
 //!   axis of the axis model or a field-bus broadcast), lease renewal and expiry.
 //! - [`integrity`]: SHA-256 fingerprint of the configuration, change report, admin approval.
 //! - [`approval`]: the administrator's signed approval file (HMAC-SHA256 with the admin key).
+//! - [`config_files`]: the approved configuration on disk (key, rules, drive parameters,
+//!   approval): the one integrity check ([`config_files::ConfigFiles::check`]) and the one
+//!   approval signer ([`config_files::approve`]) of the CLI, the station and the tests.
 //! - [`trace`]: offline evaluation of a CSV trace.
 //! - [`sim`]: a simulated juggler for tests and benchmarks.
 //!
@@ -19,6 +22,7 @@
 //! [`supervisor::Supervisor::evaluate`].
 
 pub mod approval;
+pub mod config_files;
 pub mod expr;
 pub mod fanout;
 pub mod integrity;
@@ -30,6 +34,7 @@ pub mod supervisor;
 pub mod trace;
 
 pub use approval::{Approval, ApprovalError};
+pub use config_files::{ConfigFiles, DrivesFile, FilesError};
 pub use fanout::{AxisStop, Fanout, FanoutReport, Restart, StopError, StopTarget};
 pub use integrity::{
     secret_hash, AdminToken, DriveParameters, Fingerprint, Integrity, IntegrityError, Snapshot,
@@ -40,3 +45,7 @@ pub use supervisor::{CycleInput, Decision, Diagnosis, Lease, Mode, Sample, Super
 
 /// The juggler's rule set shipped with the crate (`examples/juggler.toml`).
 pub const JUGGLER_TOML: &str = include_str!("../examples/juggler.toml");
+
+/// The juggler's drive parameters shipped with the crate (`examples/juggler-drives.toml`:
+/// the simulated juggler's five amplifiers, consistent with [`JUGGLER_TOML`]).
+pub const JUGGLER_DRIVES_TOML: &str = include_str!("../examples/juggler-drives.toml");

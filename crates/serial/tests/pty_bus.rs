@@ -3,19 +3,26 @@
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use motus_serial::*;
+use motus_wire::{Scan, Scanner};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// A toy protocol: request `[addr, x]`, reply `[addr, x+1, sum]`.
-fn scan(buf: &[u8]) -> FrameScan<(u8, u8)> {
-    if buf.len() < 3 {
-        return FrameScan::Incomplete;
-    }
-    if buf[0].wrapping_add(buf[1]) == buf[2] {
-        FrameScan::Frame { frame: (buf[0], buf[1]), len: 3 }
-    } else {
-        FrameScan::Skip { corrupt: true }
+struct Toy;
+
+impl Scanner for Toy {
+    type Frame = (u8, u8);
+    type Error = ();
+    fn scan(&self, buf: &[u8]) -> Scan<(u8, u8), ()> {
+        if buf.len() < 3 {
+            return Scan::Incomplete;
+        }
+        if buf[0].wrapping_add(buf[1]) == buf[2] {
+            Scan::Frame { frame: (buf[0], buf[1]), len: 3 }
+        } else {
+            Scan::Corrupt(())
+        }
     }
 }
 
@@ -54,7 +61,7 @@ fn setup(present: &'static [u8], garbage_first: bool) -> (tempfile::TempDir, Bus
 fn transaction_over_a_pty_with_garbage_and_retry() {
     let (_dir, bus, stop) = setup(&[1, 2], true);
     let req = Request { device: 1, bytes: &[1, 41], reply_len: 3, idempotent: true };
-    let reply = bus.transact(&req, &scan, |f| f.0 == 1).unwrap();
+    let reply = bus.transact(&req, &Toy, |f| f.0 == 1).unwrap();
     assert_eq!(reply, (1, 42));
     let d = bus.device_stats(1);
     assert_eq!((d.ok, d.retries), (1, 1), "{d:?}");
@@ -67,13 +74,13 @@ fn missing_device_times_out_in_time_and_line_keeps_serving() {
     let (_dir, bus, stop) = setup(&[1], false);
     let t0 = Instant::now();
     let req = Request { device: 9, bytes: &[9, 1], reply_len: 3, idempotent: true };
-    let err = bus.transact(&req, &scan, |f| f.0 == 9).unwrap_err();
+    let err = bus.transact(&req, &Toy, |f| f.0 == 9).unwrap_err();
     let took = t0.elapsed();
     let per_attempt = bus.timeout_for(2, 3);
     assert!(matches!(err, BusError::Timeout { attempts: 3, .. }), "{err}");
     assert!(took >= per_attempt * 3 && took < per_attempt * 3 + Duration::from_millis(60), "{took:?}");
     let ok =
-        bus.transact(&Request { device: 1, bytes: &[1, 1], reply_len: 3, idempotent: true }, &scan, |f| {
+        bus.transact(&Request { device: 1, bytes: &[1, 1], reply_len: 3, idempotent: true }, &Toy, |f| {
             f.0 == 1
         });
     assert_eq!(ok.unwrap(), (1, 2));
@@ -85,7 +92,7 @@ fn missing_device_times_out_in_time_and_line_keeps_serving() {
 fn non_idempotent_requests_are_not_repeated() {
     let (_dir, bus, stop) = setup(&[], false);
     let req = Request { device: 3, bytes: &[3, 1], reply_len: 3, idempotent: false };
-    let err = bus.transact(&req, &scan, |_| true).unwrap_err();
+    let err = bus.transact(&req, &Toy, |_| true).unwrap_err();
     assert!(matches!(err, BusError::Timeout { attempts: 1, .. }), "{err}");
     stop.store(true, Ordering::Relaxed);
 }

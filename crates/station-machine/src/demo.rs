@@ -40,7 +40,10 @@ pub fn write_demo_cell(dir: &Path, listen: &str) -> io::Result<PathBuf> {
         .replace("lease_time = 0.0008", "lease_time = 0.009")
         .replace("max_sample_age = 3 ", "max_sample_age = 15 ");
     std::fs::write(dir.join("juggler.toml"), &rules)?;
-    approve_demo_rules(dir, &rules)?;
+    // The juggler's drive parameters (the simulated amplifiers'; the timing changes above do
+    // not touch them), approved with the rules.
+    std::fs::write(dir.join("juggler-drives.toml"), motus_safety::JUGGLER_DRIVES_TOML)?;
+    approve_demo_configuration(dir)?;
     let cell = DEMO_CELL
         .replace("/tmp/motus-demo/", &format!("{}/links/", dir.display()))
         .replace("127.0.0.1:29536", &format!("127.0.0.1:{}", free_tcp_port()?))
@@ -48,15 +51,18 @@ pub fn write_demo_cell(dir: &Path, listen: &str) -> io::Result<PathBuf> {
         // no kernel path; see motus_epl::transport::MemLink), one per demo cell.
         .replace("udp://127.0.0.1:24000", &format!("mem://juggler-{}", unique_segment()))
         .replace("../../safety/examples/juggler.toml", "juggler.toml")
+        .replace("../../safety/examples/juggler-drives.toml", "juggler-drives.toml")
         .replace("listen = \"127.0.0.1:8080\"", &format!("listen = \"{listen}\""));
     let path = dir.join("demo-cell.toml");
     std::fs::write(&path, cell)?;
     Ok(path)
 }
 
-/// The demo's administrator approves the juggler rules: a random key (mode 0600) and the
-/// signed approval in `dir/data`, as `motus safety approve` would write them.
-fn approve_demo_rules(dir: &Path, rules: &str) -> io::Result<()> {
+/// The demo's administrator approves the juggler's rules and drive parameters: a random key
+/// (mode 0600) and the signed approval in `dir/data`, written by the one approval signer
+/// ([`motus_safety::config_files::approve`], as `motus safety approve`).
+fn approve_demo_configuration(dir: &Path) -> io::Result<()> {
+    use motus_safety::config_files;
     use std::os::unix::fs::PermissionsExt;
     let data = dir.join("data");
     std::fs::create_dir_all(&data)?;
@@ -67,12 +73,11 @@ fn approve_demo_rules(dir: &Path, rules: &str) -> io::Result<()> {
     let key_path = data.join("admin.key");
     std::fs::write(&key_path, &key)?;
     std::fs::set_permissions(&key_path, std::fs::Permissions::from_mode(0o600))?;
-    let set = motus_safety::RuleSet::from_toml(rules).map_err(|e| io::Error::other(e.to_string()))?;
-    let snapshot = motus_safety::Snapshot::new(&set, &[]);
-    let approval = motus_safety::Approval::sign(&snapshot, "demo-admin", "demo", key.as_bytes())
-        .map_err(|e| io::Error::other(e.to_string()))?;
-    std::fs::write(
-        data.join("juggler.approved"),
-        approval.to_toml().map_err(|e| io::Error::other(e.to_string()))?,
-    )
+    let other = |e: config_files::FilesError| io::Error::other(e.to_string());
+    let (_, snapshot) =
+        config_files::read_snapshot(&dir.join("juggler.toml"), Some(&dir.join("juggler-drives.toml")))
+            .map_err(other)?;
+    config_files::approve(&snapshot, "demo-admin", "demo", key.as_bytes(), &data.join("juggler.approved"))
+        .map_err(other)?;
+    Ok(())
 }

@@ -289,9 +289,13 @@ impl StationMachine {
             .as_ref()
             .map(|r| r.axes().iter().map(|a| (a.name.clone(), a.limits.min, a.limits.max)).collect())
             .unwrap_or_default();
-        let rules_fingerprint = rules
+        // What the approval covers: the rules and the cell's drive parameters.
+        let rules_fingerprint = cell
+            .supervisor
             .as_ref()
-            .map(|r| motus_safety::Snapshot::new(r, &[]).fingerprint().to_string())
+            .zip(rules.as_ref())
+            .and_then(|(s, r)| motus_safety::config_files::snapshot_with_drives(r, s.drives.as_deref()).ok())
+            .map(|snap| snap.fingerprint().to_string())
             .unwrap_or_default();
         let shared = Arc::new(Shared {
             rule_limits: RwLock::new(rule_limits),

@@ -1,25 +1,22 @@
 //! An administrator installs new supervisor rules through the station (`PUT
 //! /api/safety/rules`; the web layer lets only admins through and audits the call): the text
-//! is checked, must describe the same drives as the running machine, is written over the
-//! cell's rules file, signed with the cell's administrator key into its approval file (as
-//! `motus safety approve` would), and loaded into the running supervisor, which stops and
-//! holds the drives until an operator's reset. The fingerprint shown changes with it.
+//! is checked, must describe the same drives as the running machine, is signed together with
+//! the cell's drive parameters (the `[supervisor] drives` file, unchanged) with the cell's
+//! administrator key into its approval file by the one approval signer
+//! ([`motus_safety::config_files::approve`], as `motus safety approve`), written over the
+//! cell's rules file, and loaded into the running supervisor, which stops and holds the
+//! drives until an operator's reset. The fingerprint shown changes with it.
 
-use std::path::Path;
 use std::sync::PoisonError;
 
-use motus_safety::{Approval, RuleSet, Snapshot};
+use motus_safety::config_files::{self, FilesError};
+use motus_safety::RuleSet;
 use motus_station_web::{BackendError, Caller};
 
 use crate::Shared;
 
-/// Writes `text` to `path` through a temporary file in the same folder and a rename, so a
-/// reader never sees half a file.
-fn write_atomically(path: &Path, text: &str) -> Result<(), BackendError> {
-    let failed = |e: std::io::Error| BackendError::State(format!("cannot write {}: {e}", path.display()));
-    let tmp = path.with_extension("tmp-motus");
-    std::fs::write(&tmp, text).map_err(failed)?;
-    std::fs::rename(&tmp, path).map_err(failed)
+fn state(e: FilesError) -> BackendError {
+    BackendError::State(e.to_string())
 }
 
 /// The rules' drives: (name, node id), in order.
@@ -50,16 +47,16 @@ pub(crate) fn install(shared: &Shared, caller: &Caller, toml: &str) -> Result<St
             "the cell names no administrator key and approval file: rules cannot be approved here".into(),
         ));
     };
-    let key = motus_cell::juggler::read_key(key_path).map_err(BackendError::State)?;
-    let snapshot = Snapshot::new(&rules, &[]);
+    let key = config_files::read_key(key_path).map_err(state)?;
+    let snapshot = config_files::snapshot_with_drives(&rules, sup.drives.as_deref()).map_err(state)?;
     let fingerprint = snapshot.fingerprint().to_string();
     let approved_at = motus_lab::UnixMs::from(std::time::SystemTime::now()).0.to_string();
-    let approval = Approval::sign(&snapshot, &caller.user, &approved_at, &key)
-        .and_then(|a| a.to_toml())
-        .map_err(|e| BackendError::State(format!("cannot sign the approval: {e}")))?;
-    write_atomically(&sup.rules, toml)?;
-    write_atomically(approval_path, &approval)?;
-    juggler.install_rules(rules.clone());
+    // Signed first: a key that signs nothing leaves both files as they were. Between the two
+    // renames the integrity watcher may see a difference: a stop (fail closed), and the new
+    // rules hold the drives until a reset anyway.
+    config_files::approve(&snapshot, &caller.user, &approved_at, &key, approval_path).map_err(state)?;
+    config_files::write_atomically(&sup.rules, toml.as_bytes()).map_err(state)?;
+    juggler.install_rules(rules.clone()).map_err(BackendError::State)?;
     *shared.rules_fingerprint.write().unwrap_or_else(PoisonError::into_inner) = fingerprint.clone();
     *shared.rule_limits.write().unwrap_or_else(PoisonError::into_inner) =
         rules.axes().iter().map(|a| (a.name.clone(), a.limits.min, a.limits.max)).collect();

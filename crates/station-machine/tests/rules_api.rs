@@ -79,13 +79,16 @@ fn an_admin_installs_approved_rules_and_a_student_cannot() {
         std::thread::sleep(Duration::from_millis(50));
     }
     assert_eq!(std::fs::read_to_string(&rules_file).unwrap(), narrowed);
-    // The approval on disk verifies with the cell's key against the new rules.
-    let key = std::fs::read(st.dir.path().join("data/admin.key")).unwrap();
-    let approval = std::fs::read_to_string(st.dir.path().join("data/juggler.approved")).unwrap();
-    let approved = motus_safety::Approval::from_toml(&approval).unwrap().verify(&key).unwrap();
-    let set = motus_safety::RuleSet::from_toml(&narrowed).unwrap();
-    let mut integrity = motus_safety::Integrity::new(approved, motus_safety::secret_hash(&key));
-    integrity.check(&motus_safety::Snapshot::new(&set, &[])).unwrap();
+    // The approval on disk verifies with the cell's key against the new rules and the
+    // unchanged drive parameters (the one integrity check, as the station's watcher runs it).
+    let files = motus_safety::ConfigFiles {
+        rules: rules_file.clone(),
+        drives: Some(st.dir.path().join("juggler-drives.toml")),
+        approval: st.dir.path().join("data/juggler.approved"),
+        key: st.dir.path().join("data/admin.key"),
+    };
+    let set = files.check().unwrap();
+    assert_eq!(set.config(), motus_safety::RuleSet::from_toml(&narrowed).unwrap().config());
     // The operator resets: the juggler runs on the new rules.
     std::thread::sleep(Duration::from_millis(1500)); // the next integrity check
     admin.ok("POST", "/api/reset", Value::Null);

@@ -37,6 +37,10 @@ fn demo_cell_loads() {
     let sup = cell.supervisor.as_ref().unwrap();
     assert!(sup.rules.ends_with("safety/examples/juggler.toml"));
     assert!(sup.rules.exists());
+    // ... and so do the juggler's drive parameters, approved and watched with them.
+    let drives = sup.drives.as_ref().unwrap();
+    assert!(drives.ends_with("safety/examples/juggler-drives.toml"));
+    assert_eq!(drive_tables(drives), 5);
     // Task classes: 1 ms, 10 ms, 20 ms, 100 ms.
     let periods: Vec<Duration> = cell.task_classes().iter().map(|c| c.period).collect();
     assert_eq!(
@@ -49,6 +53,12 @@ fn demo_cell_loads() {
         ]
     );
     assert_eq!(cell.task_classes()[3].overrun_limit, 3);
+}
+
+/// `[[drive]]` tables in a drive-parameter file (this crate does not depend on the safety
+/// crate: counted in the text).
+fn drive_tables(path: &Path) -> usize {
+    std::fs::read_to_string(path).unwrap().lines().filter(|l| l.trim() == "[[drive]]").count()
 }
 
 #[test]

@@ -24,6 +24,7 @@ use std::time::{Duration, Instant};
 use motus_can::{CanBus, CanError, CanFrame, Received};
 use motus_canopen_protocol::message::LSS_SLAVE_TO_MASTER;
 use motus_canopen_protocol::{LssResponse, NmtCommand, NmtState, SdoResponse};
+use motus_clock::{SharedClock, SystemClock};
 
 use crate::eds::ObjectDictionary;
 use crate::emcy::{EmcyParse, Emergency};
@@ -129,6 +130,8 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 
 pub(crate) struct Inner {
     bus: Arc<dyn CanBus>,
+    /// The time of SDO deadlines and heartbeat monitoring (see [`Master::with_clock`]).
+    clock: SharedClock,
     running: AtomicBool,
     sdo_timeout: Mutex<Duration>,
     lss_timeout: Mutex<Duration>,
@@ -259,7 +262,7 @@ impl Inner {
                     std::thread::sleep(Duration::from_millis(20));
                 }
             }
-            let lost = lock(&self.heartbeat).poll(Instant::now());
+            let lost = lock(&self.heartbeat).poll(self.clock.now());
             for e in lost {
                 self.emit_heartbeat(e);
             }
@@ -274,10 +277,23 @@ pub struct Master {
 }
 
 impl Master {
-    /// Starts a master on `bus` (spawns its receive thread).
+    /// Starts a master on `bus` (spawns its receive thread), on the system clock.
     pub fn new(bus: Arc<dyn CanBus>) -> Master {
+        Self::with_clock(bus, SystemClock::shared())
+    }
+
+    /// Starts a master on `bus` whose SDO time-outs and heartbeat monitoring run on `clock`.
+    ///
+    /// On a [`motus_clock::VirtualClock`] the bus must be an in-process pair
+    /// ([`motus_can::PairBus`]) whose peer answers inside `send`: a transfer waits for an
+    /// answer at most its remaining time-out of *wall* time (a liveness bound; the answer is
+    /// normally already queued), then jumps the clock to the deadline and fails on virtual
+    /// time. The receive thread only reads the clock. Frames' [`Received::at`] must be in
+    /// the clock's time (the pair stamps them so).
+    pub fn with_clock(bus: Arc<dyn CanBus>, clock: SharedClock) -> Master {
         let inner = Arc::new(Inner {
             bus,
+            clock,
             running: AtomicBool::new(true),
             sdo_timeout: Mutex::new(Duration::from_millis(500)),
             lss_timeout: Mutex::new(Duration::from_millis(500)),
@@ -344,7 +360,7 @@ impl Master {
     /// for longer than `consumer_time` (counted from now), then
     /// [`MasterEvent::HeartbeatRecovered`]. A zero time stops monitoring.
     pub fn monitor_heartbeat(&self, node: u8, consumer_time: Duration) {
-        lock(&self.inner.heartbeat).monitor(node, consumer_time, Instant::now());
+        lock(&self.inner.heartbeat).monitor(node, consumer_time, self.inner.clock.now());
     }
 
     /// The NMT state `node` last reported (boot-up or heartbeat).
@@ -414,6 +430,11 @@ impl Master {
             frames_sent: s.sent.load(Ordering::Relaxed),
             transport_errors: s.transport_errors.load(Ordering::Relaxed),
         }
+    }
+
+    /// The clock of SDO time-outs and heartbeat monitoring.
+    pub fn clock(&self) -> &SharedClock {
+        &self.inner.clock
     }
 
     /// The bus description.

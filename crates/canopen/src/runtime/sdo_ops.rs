@@ -69,32 +69,40 @@ impl Inner {
         let (tx, rx) = channel();
         lock(&self.sdo_waiters).insert(node, tx);
         let _guard = WaiterGuard { inner: self, node };
-        let (mut t, first) = start(Instant::now())?;
+        let clock = &*self.clock;
+        let (mut t, first) = start(clock.now())?;
         let (index, sub) = t.object();
         let ctx = || format!("SDO transfer with node {node} on 0x{index:04X}:{sub:02X}");
         self.send(&first, ctx)?;
         // Each request is answered once: its answer measures the bus and the way of
-        // waiting (see `spin_wait`). Only a request still unanswered is spun for.
-        let mut unanswered = Some((Instant::now(), self.sdo_latency.plan()));
+        // waiting (see `spin_wait`). Only a request still unanswered is spun for. The
+        // protocol's times (`sent_at`, the deadline) are the clock's; the way of waiting
+        // (`wall_sent`, the spin) is measured on wall time.
+        let mut unanswered = Some((clock.now(), Instant::now(), self.sdo_latency.plan()));
         loop {
-            let deadline = t.deadline().unwrap_or_else(Instant::now);
-            let (sent_at, plan) = unanswered.unwrap_or((deadline, WaitPlan::SLEEP));
-            let step = match self.sdo_latency.recv(&rx, plan, sent_at, deadline) {
+            let deadline = t.deadline().unwrap_or_else(|| clock.now());
+            let wall_deadline = Instant::now() + deadline.saturating_duration_since(clock.now());
+            let (sent_at, wall_sent, plan) = unanswered.unwrap_or((deadline, wall_deadline, WaitPlan::SLEEP));
+            let step = match self.sdo_latency.recv(&rx, plan, wall_sent, wall_deadline) {
                 Ok(r) => {
                     if unanswered.take().is_some() {
                         self.sdo_latency.record_bus(r.at.saturating_duration_since(sent_at));
-                        self.sdo_latency.record_exchange(plan, sent_at.elapsed());
+                        self.sdo_latency.record_exchange(plan, wall_sent.elapsed());
                     }
-                    t.on_frame(&r.frame, Instant::now())
+                    t.on_frame(&r.frame, clock.now())
                 }
-                Err(RecvTimeoutError::Timeout) => t.poll(Instant::now()),
-                Err(RecvTimeoutError::Disconnected) => t.poll(Instant::now() + Duration::from_secs(3600)),
+                Err(RecvTimeoutError::Timeout) => {
+                    // On a virtual clock nobody else moves time: jump to the deadline.
+                    clock.sleep_until(deadline);
+                    t.poll(clock.now())
+                }
+                Err(RecvTimeoutError::Disconnected) => t.poll(clock.now() + Duration::from_secs(3600)),
             };
             match step {
                 SdoStep::Wait => {}
                 SdoStep::Send(f) => {
                     self.send(&f, ctx)?;
-                    unanswered = Some((Instant::now(), self.sdo_latency.plan()));
+                    unanswered = Some((clock.now(), Instant::now(), self.sdo_latency.plan()));
                 }
                 SdoStep::Done(data) => return Ok(data),
                 SdoStep::Failed { abort, error } => {
@@ -144,7 +152,7 @@ impl Inner {
             let Some(&(node, index, sub)) = requests.get(*i) else { continue };
             lock(&self.sdo_waiters).insert(node, tx.clone());
             waiter_guards.push(WaiterGuard { inner: self, node });
-            match SdoTransfer::upload(node, index, sub, Instant::now(), timeout) {
+            match SdoTransfer::upload(node, index, sub, self.clock.now(), timeout) {
                 Ok((t, first)) => {
                     active.insert(node, (*i, t));
                     first_frames.push(first);
@@ -167,28 +175,31 @@ impl Inner {
         }
         // On a fast bus the answers may be spun for (see `spin_wait`): the first answer's
         // arrival at the receive thread measures the bus, the last one the way of waiting.
-        let sent_at = Instant::now();
+        let clock = &*self.clock;
+        let (sent_at, wall_sent) = (clock.now(), Instant::now());
         let plan = self.sdo_latency.plan();
         let mut first_answer = true;
         let mut timed_out = false;
         while !active.is_empty() {
             let next = active.values().filter_map(|(_, t)| t.deadline()).min();
-            let deadline = next.unwrap_or_else(Instant::now);
-            let (node, step) = match self.sdo_latency.recv(&rx, plan, sent_at, deadline) {
+            let deadline = next.unwrap_or_else(|| clock.now());
+            let wall_deadline = Instant::now() + deadline.saturating_duration_since(clock.now());
+            let (node, step) = match self.sdo_latency.recv(&rx, plan, wall_sent, wall_deadline) {
                 Ok(r) => {
                     if std::mem::take(&mut first_answer) {
                         self.sdo_latency.record_bus(r.at.saturating_duration_since(sent_at));
                     }
                     let node = u8::try_from(r.frame.id().wrapping_sub(0x580)).unwrap_or(0);
                     match active.get_mut(&node) {
-                        Some((_, t)) => (node, t.on_frame(&r.frame, Instant::now())),
+                        Some((_, t)) => (node, t.on_frame(&r.frame, clock.now())),
                         None => continue,
                     }
                 }
                 Err(_) => {
                     // Time-out: poll every transfer (the one due fails, the others wait).
                     timed_out = true;
-                    let now = Instant::now();
+                    clock.sleep_until(deadline);
+                    let now = clock.now();
                     let due: Vec<u8> = active
                         .iter()
                         .filter(|(_, (_, t))| t.deadline().is_some_and(|d| d <= now))
@@ -226,7 +237,7 @@ impl Inner {
             }
         }
         if !timed_out && !first_answer {
-            self.sdo_latency.record_exchange(plan, sent_at.elapsed());
+            self.sdo_latency.record_exchange(plan, wall_sent.elapsed());
         }
         drop(waiter_guards);
         drop(guards);

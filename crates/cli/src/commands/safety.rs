@@ -1,17 +1,20 @@
 //! `motus safety check | run | approve`: the supervisor offline over a trace, online on a
 //! POWERLINK segment, and the administrator's approval of its configuration.
 
-use std::path::{Path, PathBuf};
+use std::ops::ControlFlow;
 use std::sync::atomic::Ordering;
 use std::sync::mpsc;
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{bail, Context, Result};
-use motus_epl::{open_link, EthLink};
-use motus_safety::{secret_hash, Approval, DriveParameters, Integrity, Mode, Restart, RuleSet, Snapshot};
-use motus_safety_epl::{juggler, EplLeaseTarget, InputMap, OnlineConfig, OnlineEvent, OnlineSupervisor};
-use serde::Deserialize;
+use motus_epl::open_link;
+use motus_epl::sim::pdo::STATUS_HOMED;
+use motus_safety::{config_files, ConfigFiles, Mode, Restart, RuleSet};
+use motus_safety_epl::{
+    juggler, Command, EplLeaseTarget, InputMap, InputsFor, IntegrityWatcher, OnlineConfig, OnlineEvent,
+    OnlineSupervisor, ServeEvent,
+};
 use serde_json::json;
 
 use super::epl::{read_map, read_rules};
@@ -35,41 +38,17 @@ pub fn run(cmd: SafetyCommand) -> Result<()> {
     }
 }
 
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct DrivesFile {
-    #[serde(default)]
-    drive: Vec<DriveParameters>,
-}
-
-fn read_drives(path: Option<&Path>) -> Result<Vec<DriveParameters>> {
-    let Some(path) = path else { return Ok(Vec::new()) };
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let f: DrivesFile =
-        toml::from_str(&text).with_context(|| format!("invalid drive parameters {}", path.display()))?;
-    Ok(f.drive)
-}
-
-fn read_key(path: &Path) -> Result<Vec<u8>> {
-    let mut key = std::fs::read(path).with_context(|| format!("cannot read the key {}", path.display()))?;
-    while key.last().is_some_and(|b| b.is_ascii_whitespace()) {
-        key.pop();
-    }
-    Ok(key)
-}
-
-fn snapshot(rules: &Path, drives: Option<&Path>) -> Result<(RuleSet, Snapshot)> {
-    let set = read_rules(rules)?;
-    let d = read_drives(drives)?;
-    let snap = Snapshot::new(&set, &d);
-    Ok((set, snap))
-}
-
 fn approve(a: SafetyApproveArgs) -> Result<()> {
-    let key = read_key(&a.key)?;
-    let (_, snap) = snapshot(&a.rules, a.drives.as_deref())?;
-    if let Ok(text) = std::fs::read_to_string(&a.out) {
-        match Approval::from_toml(&text).and_then(|old| old.verify(&key)) {
+    let key = config_files::read_key(&a.key)?;
+    let (_, snap) = config_files::read_snapshot(&a.rules, a.drives.as_deref())?;
+    if a.out.exists() {
+        let old = ConfigFiles {
+            rules: a.rules.clone(),
+            drives: a.drives.clone(),
+            approval: a.out.clone(),
+            key: a.key.clone(),
+        };
+        match old.approved(&key) {
             Ok(old) => {
                 let changes = snap.diff(&old);
                 if changes.is_empty() {
@@ -83,102 +62,72 @@ fn approve(a: SafetyApproveArgs) -> Result<()> {
         }
     }
     let at = SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
-    let approval = Approval::sign(&snap, &a.admin, &format!("unix:{at}"), &key)?;
-    std::fs::write(&a.out, approval.to_toml()?)
-        .with_context(|| format!("cannot write {}", a.out.display()))?;
+    let approval = config_files::approve(&snap, &a.admin, &format!("unix:{at}"), &key, &a.out)?;
     println!("{}", json!({ "approved": approval.fingerprint, "admin": a.admin, "file": a.out }));
     Ok(())
 }
 
-/// Checks the current files against the approval; `Err` names what is wrong.
-fn integrity_check(
-    rules: &Path,
-    drives: Option<&Path>,
-    approval: &Path,
-    key: &[u8],
-) -> std::result::Result<RuleSet, String> {
-    let text =
-        std::fs::read_to_string(approval).map_err(|e| format!("approval {}: {e}", approval.display()))?;
-    let approved = Approval::from_toml(&text).and_then(|a| a.verify(key)).map_err(|e| e.to_string())?;
-    let (set, current) = snapshot(rules, drives).map_err(|e| crate::error_text::error_text(&e))?;
-    let mut integrity = Integrity::new(approved, secret_hash(key));
-    integrity.check(&current).map_err(|e| e.to_string())?;
-    Ok(set)
-}
-
-struct Watch {
-    rules: PathBuf,
-    drives: Option<PathBuf>,
-    approval: PathBuf,
-    key: Vec<u8>,
-}
-
-fn build(
-    set: RuleSet,
-    map: &Option<PathBuf>,
-    link: &Arc<dyn EthLink>,
-    origin: Instant,
-    wire_lease: Duration,
-    config: OnlineConfig,
-) -> Result<OnlineSupervisor> {
-    let vmap = match map {
-        Some(p) => read_map(p)?,
-        None => juggler::value_map(&set),
-    };
-    let inputs = InputMap::new(&set, vmap, motus_epl::sim::pdo::STATUS_HOMED)?;
-    let renew = Duration::from_secs_f64(set.config().supervisor.cycle_time.max(0.0001));
-    let target = EplLeaseTarget::new(Arc::clone(link), origin, wire_lease, renew, [0; 8]);
-    Ok(OnlineSupervisor::new(set, inputs, vec![Box::new(target)], origin, config))
-}
+/// How often `motus safety run` re-checks the configuration files.
+const INTEGRITY_EVERY: Duration = Duration::from_secs(1);
 
 fn online(a: SafetyRunArgs) -> Result<()> {
-    let set = read_rules(&a.rules)?;
-    let watch = match (&a.approval, &a.key, a.no_integrity) {
+    let set = config_files::read_rules(&a.rules)?;
+    let files = match (&a.approval, &a.key, a.no_integrity) {
         (_, _, true) => None,
-        (Some(approval), Some(key), false) => Some(Watch {
+        (Some(approval), Some(key), false) => Some(ConfigFiles {
             rules: a.rules.clone(),
             drives: a.drives.clone(),
             approval: approval.clone(),
-            key: read_key(key)?,
+            key: key.clone(),
         }),
         _ => bail!("--approval and --key are needed (or --no-integrity for commissioning)"),
     };
     let link = open_link(&a.interface, true).with_context(|| format!("cannot open {}", a.interface))?;
     let origin = Instant::now();
     let mode = if a.homing { Mode::Homing } else { Mode::Normal };
-    let wire_lease = Duration::from_millis(a.wire_lease_ms);
     let restart = if a.auto_restart { Restart::Automatic } else { Restart::Manual };
     let config = OnlineConfig { mode, restart };
-    let mut sup = build(set, &a.map, &link, origin, wire_lease, config)?;
+    // The drives' value map: the --map file for every rule set, else the simulated drives'.
+    let vmap = a.map.as_deref().map(read_map).transpose()?;
+    let inputs_for: InputsFor = Box::new(move |r: &RuleSet| {
+        InputMap::new(r, vmap.clone().unwrap_or_else(|| juggler::value_map(r)), STATUS_HOMED)
+    });
+    let inputs = inputs_for(&set)?;
+    let renew = Duration::from_secs_f64(set.config().supervisor.cycle_time.max(0.0001));
+    let wire_lease = Duration::from_millis(a.wire_lease_ms);
+    let target = EplLeaseTarget::new(Arc::clone(&link), origin, wire_lease, renew, [0; 8]);
+    let mut sup = OnlineSupervisor::new(set.clone(), inputs, vec![Box::new(target)], origin, config);
+    let stop = super::stop_flag()?;
+    let (commands, rx) = mpsc::channel::<Command>();
     // Operator commands on standard input.
-    let (op_tx, op_rx) = mpsc::channel::<String>();
+    let op = commands.clone();
     std::thread::spawn(move || {
         for line in std::io::stdin().lines().map_while(|l| l.ok()) {
-            if op_tx.send(line.trim().to_owned()).is_err() {
+            let command = match line.trim() {
+                "reset" => Command::Reset,
+                "stop" => Command::StopAll,
+                "" => continue,
+                other => {
+                    eprintln!("unknown command {other:?} (known: reset, stop)");
+                    continue;
+                }
+            };
+            if op.send(command).is_err() {
                 break;
             }
         }
     });
-
-    // Integrity: checked now and re-checked every second on a helper thread.
-    let (tx, rx) = mpsc::channel::<std::result::Result<RuleSet, String>>();
-    let stop = super::stop_flag()?;
-    match &watch {
+    // Integrity: checked now and every second on the watcher's thread; newly approved rules
+    // are installed (the drives are stopped and held until a reset).
+    let watching = files.is_some();
+    match files {
         None => sup.set_integrity(Ok(())),
-        Some(w) => {
-            let first = integrity_check(&w.rules, w.drives.as_deref(), &w.approval, &w.key);
-            sup.set_integrity(first.map(|_| ()));
-            let (rules, drives, approval, key) =
-                (w.rules.clone(), w.drives.clone(), w.approval.clone(), w.key.clone());
-            let stop = Arc::clone(&stop);
-            std::thread::spawn(move || {
-                while !stop.load(Ordering::Relaxed) {
-                    std::thread::sleep(Duration::from_secs(1));
-                    if tx.send(integrity_check(&rules, drives.as_deref(), &approval, &key)).is_err() {
-                        break;
-                    }
-                }
-            });
+        Some(files) => {
+            IntegrityWatcher::new(files, INTEGRITY_EVERY).reload_rules(set, inputs_for).spawn(
+                "safety-integrity",
+                commands,
+                Arc::clone(&stop),
+            )?;
         }
     }
     eprintln!(
@@ -187,58 +136,16 @@ fn online(a: SafetyRunArgs) -> Result<()> {
         a.rules.display(),
         sup.supervisor().rules().axes().len(),
         sup.supervisor().rules().rules().len(),
-        if watch.is_none() { "; INTEGRITY CHECK DISABLED" } else { "" }
+        if watching { "" } else { "; INTEGRITY CHECK DISABLED" }
     );
     let end = a.duration.map(|s| Instant::now() + Duration::from_secs_f64(s.max(0.0)));
-    let mut buf = vec![0u8; motus_epl::transport::MAX_FRAME];
-    let mut last_integrity: std::result::Result<(), String> = Ok(());
-    let poll = Duration::from_millis(1);
-    while !stop.load(Ordering::Relaxed) && end.is_none_or(|e| Instant::now() < e) {
-        if let Ok(result) = rx.try_recv() {
-            let now_ok = result.as_ref().map(|_| ()).map_err(Clone::clone);
-            match result {
-                Ok(new_set) if new_set.config() != sup.supervisor().rules().config() => {
-                    eprintln!("approved rules changed: reloading");
-                    sup = build(new_set, &a.map, &link, origin, wire_lease, config)?;
-                }
-                _ => {}
-            }
-            if now_ok != last_integrity {
-                if let Err(why) = &now_ok {
-                    println!("{}", json!({ "event": "integrity", "ok": false, "diagnosis": why }));
-                } else {
-                    println!("{}", json!({ "event": "integrity", "ok": true }));
-                }
-            }
-            sup.set_integrity(now_ok.clone());
-            last_integrity = now_ok;
-        }
-        if let Ok(cmd) = op_rx.try_recv() {
-            match cmd.as_str() {
-                "reset" => {
-                    sup.reset();
-                    println!("{}", json!({ "event": "reset" }));
-                }
-                "stop" => {
-                    sup.stop_all();
-                    println!("{}", json!({ "event": "operator_stop" }));
-                }
-                "" => {}
-                other => eprintln!("unknown command {other:?} (known: reset, stop)"),
-            }
-        }
-        let event = match link.recv(&mut buf, poll)? {
-            Some((n, at)) => {
-                sup.on_frame(buf.get(..n).unwrap_or(&[]), at).or_else(|| sup.tick(Instant::now()))
-            }
-            None => sup.tick(Instant::now()),
-        };
+    let result = sup.run(&*link, &rx, &stop, Duration::from_millis(1), |_, event| {
         let t = origin.elapsed().as_secs_f64();
         match event {
-            Some(OnlineEvent::Safe { cycle, held }) => {
+            ServeEvent::Online(OnlineEvent::Safe { cycle, held }) => {
                 println!("{}", json!({ "t": t, "event": "safe", "cycle": cycle, "held": held }));
             }
-            Some(OnlineEvent::Unsafe { cycle, diagnosis, reaction, errors }) => {
+            ServeEvent::Online(OnlineEvent::Unsafe { cycle, diagnosis, reaction, errors }) => {
                 println!(
                     "{}",
                     json!({
@@ -247,10 +154,28 @@ fn online(a: SafetyRunArgs) -> Result<()> {
                     })
                 );
             }
-            None => {}
+            ServeEvent::Integrity(Ok(())) => println!("{}", json!({ "event": "integrity", "ok": true })),
+            ServeEvent::Integrity(Err(why)) => {
+                println!("{}", json!({ "event": "integrity", "ok": false, "diagnosis": why }));
+            }
+            ServeEvent::RulesInstalled => {
+                eprintln!("approved rules changed: installed, the drives are held until reset");
+                println!("{}", json!({ "t": t, "event": "rules_installed" }));
+            }
+            ServeEvent::Reset => println!("{}", json!({ "event": "reset" })),
+            ServeEvent::Stopped => println!("{}", json!({ "event": "operator_stop" })),
+            ServeEvent::Pass => {
+                if end.is_some_and(|e| Instant::now() >= e) {
+                    return ControlFlow::Break(());
+                }
+            }
         }
-    }
+        ControlFlow::Continue(())
+    });
     sup.stop_all();
+    // The watcher's thread ends with the flag (or when it finds the channel closed).
+    stop.store(true, Ordering::Relaxed);
+    result?;
     let p = sup.reaction().percentiles();
     eprintln!(
         "{} frames, {} stops; reaction p50 {:.1} us p99 {:.1} us max {:.1} us over {} stops",

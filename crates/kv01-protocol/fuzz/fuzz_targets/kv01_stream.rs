@@ -4,7 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use motus_kv01_protocol::{CrcMode, Direction, StreamDecoder, StreamEvent};
+use motus_kv01_protocol::{CrcMode, Direction, MessageScanner, StreamDecoder, StreamEvent};
 
 fuzz_target!(|data: &[u8]| {
     let Some((&sel, mut rest)) = data.split_first() else {
@@ -16,7 +16,7 @@ fuzz_target!(|data: &[u8]| {
         _ => Direction::Auto,
     };
     let mode = if sel & 0x80 != 0 { CrcMode::Lenient } else { CrcMode::Strict };
-    let mut dec = StreamDecoder::new(dir, mode);
+    let mut dec = StreamDecoder::new(MessageScanner::new(dir, mode));
     let mut frame_bytes = 0usize;
     let mut total = 0usize;
     let mut count = |ev: StreamEvent| {
@@ -34,6 +34,6 @@ fuzz_target!(|data: &[u8]| {
     }
     dec.flush();
     dec.by_ref().for_each(&mut count);
-    assert_eq!(dec.buffered(), 0);
+    assert_eq!(dec.pending(), 0);
     assert_eq!(dec.stats().garbage_bytes as usize + frame_bytes, total);
 });

@@ -5,21 +5,19 @@
 use motus_kv01::{ArmConfig, Kv01Arm, Kv01Bus};
 use motus_kv01_protocol::CrcMode;
 use motus_kv01_sim::{LineOptions, SharedArm, SimLine};
-use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink};
+use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink, ServeThread};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::thread::JoinHandle;
 use std::time::Duration;
 
 pub const BAUD: u32 = 115_200;
 
+/// Stops serving (first field: dropped first) before the folder of its pty goes.
 pub struct Sim {
+    _line: ServeThread<SimLine>,
     pub dir: tempfile::TempDir,
     pub path: PathBuf,
     pub arm: SharedArm,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
 }
 
 impl Sim {
@@ -27,12 +25,9 @@ impl Sim {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("arm");
         let pty = PtyLink::create(Some(&path), LineSettings::n81(BAUD)).unwrap();
-        let mut line = SimLine::new(Box::new(pty), options).unwrap();
+        let line = SimLine::new(Box::new(pty), options).unwrap();
         let arm = line.arm();
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || line.run(&flag).unwrap());
-        Sim { dir, path, arm, stop, thread: Some(thread) }
+        Sim { _line: ServeThread::spawn("kv01-sim", line, SimLine::run).unwrap(), dir, path, arm }
     }
 
     pub fn open(&self, config: ArmConfig, bus: BusConfig) -> Kv01Arm {
@@ -44,15 +39,6 @@ pub fn open(path: &Path, config: ArmConfig, bus: BusConfig) -> Kv01Arm {
     let link = SerialLink::open(path.to_str().unwrap(), BAUD).unwrap();
     let bus = Kv01Bus::new(Arc::new(BusMaster::new(Box::new(link), bus)), CrcMode::Strict);
     Kv01Arm::start(bus, config).unwrap()
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
 }
 
 pub fn settle() {

@@ -4,7 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use motus_nfv2_protocol::{decode_frame, Revision, StreamDecoder};
+use motus_nfv2_protocol::{decode_frame, FrameScanner, Revision, StreamDecoder};
 
 fuzz_target!(|data: &[u8]| {
     let Some((&size, bytes)) = data.split_first() else {
@@ -12,9 +12,10 @@ fuzz_target!(|data: &[u8]| {
     };
     let size = usize::from(size).max(1);
     let rev = Revision::LATEST;
-    let mut decoder = StreamDecoder::new(rev);
+    let mut decoder = StreamDecoder::new(FrameScanner::new(rev));
     for chunk in bytes.chunks(size) {
-        for frame in decoder.push(chunk).into_iter().flatten() {
+        decoder.push(chunk);
+        while let Some(frame) = decoder.next_frame() {
             let encoded = frame.encode(rev);
             assert!(encoded.is_ok(), "decoded frame does not encode: {frame:?}");
             if let Ok(encoded) = encoded {

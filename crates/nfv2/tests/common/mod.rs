@@ -5,7 +5,7 @@
 
 use motus_nfv2::{Nfv2Bus, SchedulerConfig};
 use motus_nfv2_sim::{lock, LineOptions, SharedController, SimClock, SimLine};
-use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink};
+use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink, ServeThread};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -25,13 +25,13 @@ pub fn two_controllers() -> LineOptions {
     LineOptions { addresses: vec![1, 2], ..LineOptions::default() }
 }
 
+/// Stops serving (first field: dropped first) before the folder of its pty goes.
 pub struct Sim {
+    _line: ServeThread<SimLine>,
     pub dir: tempfile::TempDir,
     pub path: PathBuf,
     pub clock: SimClock,
     controllers: Vec<(u8, SharedController)>,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
 }
 
 impl Sim {
@@ -39,13 +39,15 @@ impl Sim {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("nfv2");
         let pty = PtyLink::create(Some(&path), LineSettings::n81(BAUD)).unwrap();
-        let mut line = SimLine::new(Box::new(pty), options).unwrap();
-        let controllers = line.controllers();
-        let clock = line.clock();
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || line.run(&flag).unwrap());
-        Sim { dir, path, clock, controllers, stop, thread: Some(thread) }
+        let line = SimLine::new(Box::new(pty), options).unwrap();
+        let (controllers, clock) = (line.controllers(), line.clock());
+        Sim {
+            _line: ServeThread::spawn("nfv2-sim", line, SimLine::run).unwrap(),
+            dir,
+            path,
+            clock,
+            controllers,
+        }
     }
 
     pub fn controller(&self, address: u8) -> SharedController {
@@ -64,15 +66,6 @@ impl Sim {
         let mut g = lock(&c);
         g.advance_to(self.clock.now());
         f(&mut g)
-    }
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
     }
 }
 

@@ -7,8 +7,8 @@ use motus_ps1a_protocol::{CommandFrame, CommandStream, ReplyStream, StatusReply,
 
 fuzz_target!(|data: &[u8]| {
     let split = data.first().copied().unwrap_or(1).max(1) as usize;
-    let mut commands = CommandStream::commands();
-    let mut replies = ReplyStream::replies();
+    let mut commands = CommandStream::default();
+    let mut replies = ReplyStream::default();
     for chunk in data.chunks(split) {
         commands.push(chunk);
         replies.push(chunk);

@@ -6,47 +6,28 @@ use motus_axis::{wait_until, Axis, AxisCommand, Scale};
 use motus_ps1a::{AxisConfig, Ps1aAxis, Ps1aBus};
 use motus_ps1a_protocol::{Acceleration, Parameters, U24};
 use motus_ps1a_sim::{LineOptions, SimLine};
-use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink};
+use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink, ServeThread};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::thread::JoinHandle;
 use std::time::Duration;
 
 pub const BAUD: u32 = 115_200;
 
 pub struct Sim {
     pub path: PathBuf,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<SimLine>>,
+    line: ServeThread<SimLine>,
 }
 
 impl Sim {
     pub fn start(path: &Path, options: LineOptions) -> Sim {
         let pty = PtyLink::create(Some(path), LineSettings::n81(BAUD)).unwrap();
-        let mut line = SimLine::new(Box::new(pty), options).unwrap();
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || {
-            line.run(&flag).unwrap();
-            line
-        });
-        Sim { path: path.to_path_buf(), stop, thread: Some(thread) }
+        let line = SimLine::new(Box::new(pty), options).unwrap();
+        Sim { path: path.to_path_buf(), line: ServeThread::spawn("ps1a-sim", line, SimLine::run).unwrap() }
     }
 
     /// Stops the simulator and returns it (its modules can then be inspected).
-    pub fn stop(mut self) -> SimLine {
-        self.stop.store(true, Ordering::Relaxed);
-        self.thread.take().unwrap().join().unwrap()
-    }
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
+    pub fn stop(self) -> SimLine {
+        self.line.stop().unwrap()
     }
 }
 

@@ -1,14 +1,14 @@
 //! Request/response transactions on a half-duplex multi-drop line.
 //!
 //! One transaction: drop stale input, send the request, collect bytes until the
-//! protocol's [`Framing`] finds a reply the caller accepts, or the time-out elapses. The
+//! protocol's [`Scanner`] finds a reply the caller accepts, or the time-out elapses. The
 //! time-out is the wire time of request and reply at the line's baud rate plus a margin.
 //! Idempotent requests are retried; a non-idempotent one (e.g. a relative move) is sent
 //! once, and a failure says that its outcome is unknown.
 
-use super::framing::{FrameScan, Framing};
 use super::stats::{BusStats, DeviceStats};
 use crate::link::Link;
+use motus_wire::{Scanner, Stream, StreamEvent};
 use std::collections::BTreeMap;
 use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
@@ -74,7 +74,6 @@ pub enum BusError {
 
 struct Inner {
     link: Box<dyn Link>,
-    buf: Vec<u8>,
 }
 
 struct Counters {
@@ -115,7 +114,7 @@ impl BusMaster {
         let line = link.line();
         let describe = link.describe();
         BusMaster {
-            inner: Mutex::new(Inner { link, buf: Vec::with_capacity(256) }),
+            inner: Mutex::new(Inner { link }),
             counters: Mutex::new(Counters::new()),
             config,
             line,
@@ -151,13 +150,13 @@ impl BusMaster {
         self.counters.lock().unwrap_or_else(|p| p.into_inner())
     }
 
-    /// Runs one transaction: returns the first frame `framing` finds that `accept` takes.
-    pub fn transact<F: Framing>(
+    /// Runs one transaction: returns the first frame `scanner` finds that `accept` takes.
+    pub fn transact<S: Scanner>(
         &self,
         request: &Request<'_>,
-        framing: &F,
-        accept: impl Fn(&F::Frame) -> bool,
-    ) -> Result<F::Frame, BusError> {
+        scanner: &S,
+        accept: impl Fn(&S::Frame) -> bool,
+    ) -> Result<S::Frame, BusError> {
         let attempts = if request.idempotent { 1 + self.config.retries } else { 1 };
         let timeout = self.timeout_for(request.bytes.len(), request.reply_len);
         let idle_gap = self.line.wire_time(3) + Duration::from_millis(2);
@@ -176,7 +175,7 @@ impl BusMaster {
                 break;
             }
             tx += request.bytes.len() as u64;
-            inner.buf.clear();
+            let mut replies = Stream::new(scanner);
             let mut deadline = Instant::now() + timeout;
             let mut chunk = [0u8; 256];
             let mut late_reads = 0;
@@ -204,32 +203,22 @@ impl BusMaster {
                     break;
                 }
                 rx += n as u64;
-                inner.buf.extend_from_slice(chunk.get(..n).unwrap_or(&[]));
-                let mut start = 0;
-                loop {
-                    match framing.scan(inner.buf.get(start..).unwrap_or(&[])) {
-                        FrameScan::Frame { frame, len } => {
-                            start += len;
-                            if accept(&frame) {
-                                result = Some(frame);
-                                break 'attempt;
-                            }
-                            dev.unexpected_frames += 1;
+                replies.push(chunk.get(..n).unwrap_or(&[]));
+                while let Some(event) = replies.next_event() {
+                    match event {
+                        StreamEvent::Frame(frame) if accept(&frame) => {
+                            result = Some(frame);
+                            break 'attempt;
                         }
-                        FrameScan::Incomplete => break,
-                        FrameScan::Skip { corrupt } => {
-                            start += 1;
-                            if corrupt {
-                                dev.corrupt_frames += 1;
-                                // The reply was damaged: retry as soon as the line is idle.
-                                deadline = deadline.min(Instant::now() + idle_gap);
-                            } else {
-                                garbage += 1;
-                            }
+                        StreamEvent::Frame(_) => dev.unexpected_frames += 1,
+                        StreamEvent::Corrupt(_) => {
+                            dev.corrupt_frames += 1;
+                            // The reply was damaged: retry as soon as the line is idle.
+                            deadline = deadline.min(Instant::now() + idle_gap);
                         }
+                        StreamEvent::Garbage { bytes } => garbage += bytes as u64,
                     }
                 }
-                inner.buf.drain(..start.min(inner.buf.len()));
             }
             if result.is_some() || io_error.is_some() {
                 break;
@@ -307,6 +296,7 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
     use crate::link::LineSettings;
+    use motus_wire::Scan;
     use std::io;
 
     /// A link whose answer arrives in time, but whose reader is "descheduled": the first
@@ -345,11 +335,18 @@ mod tests {
         }
     }
 
-    fn scan(buf: &[u8]) -> FrameScan<u8> {
-        match buf {
-            [a, b, ..] if *b == a.wrapping_add(1) => FrameScan::Frame { frame: *a, len: 2 },
-            [_, _, ..] => FrameScan::Skip { corrupt: false },
-            _ => FrameScan::Incomplete,
+    /// Frames `[a, a + 1]`.
+    struct Pairs;
+
+    impl Scanner for Pairs {
+        type Frame = u8;
+        type Error = std::convert::Infallible;
+        fn scan(&self, buf: &[u8]) -> Scan<u8> {
+            match buf {
+                [a, b, ..] if *b == a.wrapping_add(1) => Scan::Frame { frame: *a, len: 2 },
+                [_, _, ..] => Scan::Skip,
+                _ => Scan::Incomplete,
+            }
         }
     }
 
@@ -358,7 +355,7 @@ mod tests {
         let link = LateWakeLink { answer: vec![7, 8], waited: false, answered: false };
         let bus = BusMaster::new(Box::new(link), BusConfig { margin: Duration::from_millis(2), retries: 0 });
         let req = Request { device: 7, bytes: &[7], reply_len: 2, idempotent: true };
-        assert_eq!(bus.transact(&req, &scan, |f| *f == 7), Ok(7));
+        assert_eq!(bus.transact(&req, &Pairs, |f| *f == 7), Ok(7));
         let d = bus.device_stats(7);
         assert_eq!((d.ok, d.timeouts), (1, 0), "{d:?}");
     }
@@ -368,7 +365,7 @@ mod tests {
         let link = LateWakeLink { answer: vec![], waited: true, answered: true };
         let bus = BusMaster::new(Box::new(link), BusConfig { margin: Duration::from_millis(2), retries: 1 });
         let req = Request { device: 3, bytes: &[3], reply_len: 2, idempotent: true };
-        assert!(matches!(bus.transact(&req, &scan, |_| true), Err(BusError::Timeout { attempts: 2, .. })));
+        assert!(matches!(bus.transact(&req, &Pairs, |_| true), Err(BusError::Timeout { attempts: 2, .. })));
         assert_eq!(bus.device_stats(3).timeouts, 2);
     }
 }

@@ -1,6 +1,5 @@
 //! The half-duplex bus master and its helpers.
 
-pub mod framing;
 pub mod master;
 pub mod poller;
 pub mod stats;

@@ -32,7 +32,8 @@ pub struct BusStats {
     pub bytes_tx: u64,
     /// Bytes received.
     pub bytes_rx: u64,
-    /// Garbage bytes dropped while resynchronising.
+    /// Bytes dropped while resynchronising (noise, and the first byte of each corrupt
+    /// frame).
     pub garbage_bytes: u64,
     /// Wire time of all bytes sent and received.
     pub wire_busy: Duration,

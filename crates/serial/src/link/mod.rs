@@ -1,6 +1,28 @@
 //! The byte-IO seam and its implementations.
 
+/// Methods a decorator passes through to its `inner` link unchanged (the caller imports
+/// `io`, `Duration` and `LineSettings`).
+macro_rules! pass_through {
+    ($($method:ident),*) => { $(pass_through!(@ $method);)* };
+    (@ read) => {
+        fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+            self.inner.read(buf, timeout)
+        }
+    };
+    (@ discard_input) => {
+        fn discard_input(&mut self) -> io::Result<()> {
+            self.inner.discard_input()
+        }
+    };
+    (@ line) => {
+        fn line(&self) -> LineSettings {
+            self.inner.line()
+        }
+    };
+}
+
 pub mod fault;
+pub mod framed;
 pub mod paced;
 pub mod pty;
 pub mod serial_port;
@@ -58,23 +80,32 @@ pub trait Link: Send {
     fn describe(&self) -> String;
 }
 
-impl<L: Link + ?Sized> Link for Box<L> {
-    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
-        (**self).write_all(bytes)
-    }
-    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        (**self).read(buf, timeout)
-    }
-    fn discard_input(&mut self) -> io::Result<()> {
-        (**self).discard_input()
-    }
-    fn line(&self) -> LineSettings {
-        (**self).line()
-    }
-    fn describe(&self) -> String {
-        (**self).describe()
-    }
+/// A link behind a pointer is a link (a boxed one, or a borrowed one that outlives a
+/// decorator).
+macro_rules! link_behind {
+    ($pointer:ty) => {
+        impl<L: Link + ?Sized> Link for $pointer {
+            fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+                (**self).write_all(bytes)
+            }
+            fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+                (**self).read(buf, timeout)
+            }
+            fn discard_input(&mut self) -> io::Result<()> {
+                (**self).discard_input()
+            }
+            fn line(&self) -> LineSettings {
+                (**self).line()
+            }
+            fn describe(&self) -> String {
+                (**self).describe()
+            }
+        }
+    };
 }
+
+link_behind!(Box<L>);
+link_behind!(&mut L);
 
 #[cfg(test)]
 mod tests {

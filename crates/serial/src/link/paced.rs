@@ -54,19 +54,9 @@ impl<L: Link> Link for Paced<L> {
         Ok(())
     }
 
-    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        self.inner.read(buf, timeout)
-    }
-
-    fn discard_input(&mut self) -> io::Result<()> {
-        self.inner.discard_input()
-    }
-
-    fn line(&self) -> LineSettings {
-        self.inner.line()
-    }
-
     fn describe(&self) -> String {
         format!("paced({})", self.inner.describe())
     }
+
+    pass_through!(read, discard_input, line);
 }

@@ -42,15 +42,9 @@ impl<L: Link> Link for Traced<L> {
         Ok(n)
     }
 
-    fn discard_input(&mut self) -> io::Result<()> {
-        self.inner.discard_input()
-    }
-
-    fn line(&self) -> LineSettings {
-        self.inner.line()
-    }
-
     fn describe(&self) -> String {
         self.inner.describe()
     }
+
+    pass_through!(discard_input, line);
 }

@@ -385,6 +385,10 @@ pub struct Group {
 pub struct Supervisor {
     /// Rules file (must exist).
     pub rules: PathBuf,
+    /// Drive-parameter file (TOML `[[drive]]`, `motus_safety::DrivesFile`; must exist when
+    /// named): approved with the rules and watched with them, so a changed drive parameter
+    /// blocks motion and the diagnosis names it.
+    pub drives: Option<PathBuf>,
     /// Approval file written by `motus safety approve` (may not exist yet).
     pub approval: Option<PathBuf>,
     /// Administrator key file.

@@ -99,6 +99,7 @@ pub(crate) struct RawGroup {
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawSupervisor {
     pub rules: Spanned<String>,
+    pub drives: Option<Spanned<String>>,
     pub approval: Option<Spanned<String>>,
     pub key: Option<Spanned<String>>,
     pub group: Option<Spanned<String>>,

@@ -275,6 +275,28 @@ fn listen_address_and_missing_files() {
 }
 
 #[test]
+fn supervisor_files_resolve_relative_to_the_cell_and_drives_must_exist() {
+    let text = format!(
+        "{BASE}\n[supervisor]\nrules = \"rules.toml\"\ndrives = \"data/drives.toml\"\napproval = \"data/a.approved\"\nkey = \"/etc/motus/admin.key\"\n"
+    );
+    let cell = parse_with(Path::new("dir/cell.toml"), &text, &|_| true).unwrap();
+    let sup = cell.supervisor.unwrap();
+    assert_eq!(sup.rules, Path::new("dir/rules.toml"));
+    assert_eq!(sup.drives.as_deref(), Some(Path::new("dir/data/drives.toml")));
+    assert_eq!(sup.approval.as_deref(), Some(Path::new("dir/data/a.approved")));
+    assert_eq!(sup.key.as_deref(), Some(Path::new("/etc/motus/admin.key")));
+    // Without `drives`: none.
+    let plain = format!("{BASE}\n[supervisor]\nrules = \"rules.toml\"\n");
+    assert_eq!(parse(&plain).unwrap().supervisor.unwrap().drives, None);
+    // A named drive-parameter file must exist (the approval may not exist yet).
+    let errs = parse_with(Path::new("dir/cell.toml"), &text, &|p| !p.ends_with("drives.toml")).unwrap_err().0;
+    assert_eq!(errs.len(), 1, "{errs:?}");
+    assert_eq!(errs[0].key, "supervisor.drives");
+    assert!(errs[0].message.contains("dir/data/drives.toml"), "{}", errs[0].message);
+    assert_eq!(errs[0].line, line_of(&text, "drives = "));
+}
+
+#[test]
 fn load_reports_unreadable_file() {
     let errs = load(Path::new("/nonexistent/cell.toml")).unwrap_err();
     assert!(errs.to_string().starts_with("/nonexistent/cell.toml:0:0: cannot read"), "{errs}");

@@ -116,6 +116,17 @@ impl<'a> Validator<'a> {
                     format!("supervisor: rules file {} does not exist", rules.display()),
                 );
             }
+            let drives = s.drives.as_ref().map(|d| {
+                let path = self.path(d.get_ref());
+                if !(self.exists)(&path) {
+                    self.err(
+                        d,
+                        "supervisor.drives".into(),
+                        format!("supervisor: drive-parameter file {} does not exist", path.display()),
+                    );
+                }
+                path
+            });
             if let Some(g) = &s.group {
                 if !group_names.contains(g.get_ref()) {
                     self.err(
@@ -127,6 +138,7 @@ impl<'a> Validator<'a> {
             }
             Supervisor {
                 rules,
+                drives,
                 approval: s.approval.as_ref().map(|p| self.path(p.get_ref())),
                 key: s.key.as_ref().map(|p| self.path(p.get_ref())),
                 group: s.group.as_ref().map(|g| g.get_ref().clone()),

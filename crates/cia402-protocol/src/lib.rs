@@ -1,9 +1,29 @@
-//! CiA 402 (drives and motion control) definitions: object indices, controlword and
-//! statusword bits, the power state machine (state decoding, device commands and the
-//! transitions 0-16), modes of operation and the homing status.
+//! The CiA 402 drive profile ("drives and motion control"), sans-IO: what a drive and its
+//! master agree on, whatever carries it.
 //!
-//! Pure definitions shared by the master side (drivers) and the device side (simulators).
+//! * [`index`]: object dictionary indices of the CiA 402 objects Motus uses.
+//! * [`cw`] and [`sw`]: controlword (0x6040) and statusword (0x6041) bits.
+//! * The power drive system state machine: [`PowerState`] decoded from a statusword with
+//!   the masks of the profile, [`DeviceCommand`] decoded from a controlword, and
+//!   [`next_state`] (transitions 0-16).
+//! * [`Mode`] (modes of operation, 0x6060/0x6061) and [`HomingStatus`].
+//!
+//! Pure definitions shared by the master side (the driver, `motus-cia402`) and the device
+//! side (the simulated drive, `motus-icla-sim`); no IO, threads or clocks. The profile does
+//! not depend on CANopen's codec: the objects travel by SDO and PDO over CANopen today, and
+//! would equally over another transport of the object dictionary.
 //! Source: `specs/canopen.md` part 2 (tables 2.1-2.9).
+//!
+//! ```
+//! use motus_cia402_protocol::{next_state, sw, DeviceCommand, PowerState};
+//! let state = PowerState::from_statusword(sw::SWITCH_ON_DISABLED);
+//! assert_eq!(state, PowerState::SwitchOnDisabled);
+//! let command = DeviceCommand::from_controlword(0x0006);
+//! assert_eq!(command, Some(DeviceCommand::Shutdown));
+//! // transition 2: "switch on disabled" -> "ready to switch on"
+//! assert_eq!(next_state(state, DeviceCommand::Shutdown, 2), Some((PowerState::ReadyToSwitchOn, 2)));
+//! ```
+#![forbid(unsafe_code)]
 
 mod mode;
 mod power;
