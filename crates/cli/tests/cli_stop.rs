@@ -55,24 +55,7 @@ fn ctrl_c_stops_the_station_within_its_budget_while_checks_run() {
             break p.trim().to_owned();
         }
     };
-    let (st, head, body) = http(
-        &addr,
-        "POST",
-        "/api/login",
-        &[("Content-Type", "application/json")],
-        &serde_json::json!({ "user": "admin", "password": password }).to_string(),
-    );
-    assert_eq!(st, 200, "{body}");
-    let cookie = head
-        .lines()
-        .find_map(|l| l.strip_prefix("set-cookie: ").or_else(|| l.strip_prefix("Set-Cookie: ")))
-        .unwrap()
-        .split(';')
-        .next()
-        .unwrap()
-        .to_owned();
-    let csrf: serde_json::Value = serde_json::from_str(&body).unwrap();
-    let csrf = csrf["csrf_token"].as_str().unwrap().to_owned();
+    let (cookie, csrf) = common::login(&addr, "admin", &password);
     let upload = serde_json::json!({ "name": "endless.ngc", "text": ENDLESS }).to_string();
     // Programs uploaded (each upload checks) and checked again, all at once; idle half-open
     // connections beside them.

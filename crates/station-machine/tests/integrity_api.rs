@@ -10,12 +10,8 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::{station, Client};
+use common::{safety, station, wait_safe, Client};
 use serde_json::{json, Value};
-
-fn safety(c: &Client) -> Value {
-    c.ok("GET", "/api/safety", Value::Null)
-}
 
 /// Polls `GET /api/safety` until `done` holds.
 fn wait_safety(c: &Client, timeout: Duration, what: &str, done: impl Fn(&Value) -> bool) -> Value {
@@ -26,26 +22,6 @@ fn wait_safety(c: &Client, timeout: Duration, what: &str, done: impl Fn(&Value) 
             return s;
         }
         assert!(t0.elapsed() < timeout, "not {what} within {timeout:?}: {s}");
-        std::thread::sleep(Duration::from_millis(100));
-    }
-}
-
-/// Waits for SafeToRun, resetting (as an operator) when the juggler is held: on a loaded
-/// non-real-time host a late cycle lets the 9 ms lease expire now and then.
-fn wait_safe(c: &Client, timeout: Duration) -> Value {
-    let t0 = Instant::now();
-    let mut last_reset = Instant::now();
-    loop {
-        let s = safety(c);
-        if s["safe_to_run"] == true {
-            return s;
-        }
-        assert!(t0.elapsed() < timeout, "not SafeToRun: {s}");
-        if s["held"] == true && last_reset.elapsed() > Duration::from_secs(2) {
-            eprintln!("held ({}): reset", s["diagnosis"]);
-            c.ok("POST", "/api/reset", Value::Null);
-            last_reset = Instant::now();
-        }
         std::thread::sleep(Duration::from_millis(100));
     }
 }

@@ -185,3 +185,28 @@ impl Client {
         panic!("{id}: not homed after 5 attempts");
     }
 }
+
+/// `GET /api/safety`.
+pub fn safety(c: &Client) -> Value {
+    c.ok("GET", "/api/safety", Value::Null)
+}
+
+/// Waits for SafeToRun, resetting (as an operator) when the juggler is held: on a loaded
+/// non-real-time host a late cycle lets the 9 ms lease expire now and then.
+pub fn wait_safe(c: &Client, timeout: Duration) -> Value {
+    let t0 = Instant::now();
+    let mut last_reset = Instant::now();
+    loop {
+        let s = safety(c);
+        if s["safe_to_run"] == true {
+            return s;
+        }
+        assert!(t0.elapsed() < timeout, "not SafeToRun: {s}");
+        if s["held"] == true && last_reset.elapsed() > Duration::from_secs(2) {
+            eprintln!("held ({}): reset", s["diagnosis"]);
+            c.ok("POST", "/api/reset", Value::Null);
+            last_reset = Instant::now();
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
