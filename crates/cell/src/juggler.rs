@@ -9,7 +9,6 @@ use std::collections::BTreeMap;
 use std::ops::ControlFlow;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError, TryLockError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -21,6 +20,7 @@ use motus_epl::sim::pdo::{
 use motus_epl::sim::{MnConfig, Segment};
 use motus_epl::{open_link, Monitor, MonitorConfig};
 use motus_epl_protocol::{NodeValues, Value, ValueMap, ValueSpec, ValueType};
+use motus_realtime::{mailbox, MailboxReceiver, MailboxSender};
 use motus_safety::predict::Reach;
 use motus_safety::{config_files, ConfigFiles, Mode, RuleSet, Sample};
 use motus_safety_epl::juggler::{self, Pattern};
@@ -104,7 +104,7 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 /// The supervisor, the monitor and their shared state.
 pub struct JugglerHandle {
     snapshot: Arc<Mutex<SupervisorSnapshot>>,
-    ops: Mutex<Sender<Command>>,
+    ops: Mutex<MailboxSender<Command>>,
     views: Views,
     stop: Arc<AtomicBool>,
     threads: Mutex<Vec<JoinHandle<()>>>,
@@ -225,6 +225,10 @@ impl SegmentSim {
         let config = MnConfig {
             cycle,
             pres_timeout: (cycle / 4).clamp(Duration::from_micros(100), Duration::from_micros(300)),
+            // No spinning before each cycle: on a shared host a spinning thread takes CPU the
+            // other threads of the cell need (and uses up its fair share, so it waits longer
+            // when it wakes); a cycle start a few tens of microseconds late is harmless here.
+            busy_wait: Duration::ZERO,
             ..MnConfig::default()
         };
         let pattern = self.program.get();
@@ -320,7 +324,7 @@ pub(crate) fn start(
         integrity_disabled,
         ..SupervisorSnapshot::default()
     }));
-    let (tx, rx) = channel();
+    let (tx, rx) = mailbox();
     let stop = Arc::new(AtomicBool::new(false));
     let views: Views = Arc::new(Mutex::new(BTreeMap::new()));
     let mut threads = Vec::new();
@@ -378,7 +382,7 @@ pub(crate) fn start(
 fn supervise(
     mut sup: OnlineSupervisor,
     link: &dyn motus_epl::EthLink,
-    commands: &Receiver<Command>,
+    commands: &MailboxReceiver<Command>,
     snapshot: &Mutex<SupervisorSnapshot>,
     stop: &AtomicBool,
 ) {

@@ -10,9 +10,9 @@
 //!
 //! Juggler trips are a real-time figure, printed and not asserted: the juggler's segment runs
 //! a 1 ms cycle with a 9 ms lease, and a client load that saturates both cores of the test
-//! host (the clients run here too) can delay a cycle past it now and then (0-4 a minute were
-//! measured, docs/decisions.md); a host that keeps a core for the machine, or real-time
-//! priority with a kernel that bounds it, is what the juggler needs.
+//! host (the clients run here too) can delay a cycle past it now and then (0-4 a minute with
+//! `auto`, 4-13 with `nice` were measured, docs/decisions.md); a host that keeps a core for the
+//! machine, or real-time priority with a kernel that bounds it, is what the juggler needs.
 //!
 //! The station runs with its default policy, `--realtime nice` (web threads at nice +10);
 //! the test needs no privilege. The clients run on one thread (a current-thread runtime).

@@ -9,22 +9,35 @@
 //!   ([`set_policy`]), and locks the process's memory ([`lock_memory`]);
 //! * every layer that spawns a device, cyclic or simulator thread calls
 //!   [`promote_current_thread`] first thing in that thread, with its [`ThreadClass`];
-//! * the web server's threads call [`demote_current_thread_for_web`].
+//! * the web server's threads call [`demote_current_thread_for_web`];
+//! * transparent huge pages are off for the process (a 2 MiB page zeroed on first touch
+//!   stalls the thread that touched it for milliseconds).
 //!
 //! What each call does depends on what the process obtained ([`Obtained`]):
 //!
 //! | obtained | cyclic | device | simulator | web |
 //! |---|---|---|---|---|
 //! | [`Obtained::Fifo`] (root, `CAP_SYS_NICE` or `RLIMIT_RTPRIO`) | `SCHED_FIFO` 80 | `SCHED_FIFO` 70 | `SCHED_FIFO` 60 | nice +10 |
-//! | [`Obtained::Nice`] (`--realtime nice`, or `auto` not permitted) | nice 0 | nice 0 | nice 0 | nice +10 |
+//! | [`Obtained::Nice`] (`--realtime nice`, or `auto` not permitted) | nice 0, 0.1 ms slice | nice 0 | nice 0 | nice +10 |
 //! | [`Obtained::Off`] (`--realtime off`, or never set: libraries, tests) | unchanged | unchanged | unchanged | unchanged |
 //!
 //! A thread inherits its creator's policy and nice value: a thread spawned by a promoted
 //! thread is promoted too unless it sets its own class, and a device thread spawned from a
 //! web thread without permission to lower its nice value keeps the web's +10 (logged once).
 //!
+//! Under nice levels the cyclic threads also ask the fair scheduler for its shortest time
+//! slice ([`slice`]): a thread that wakes every millisecond then runs first when it wakes
+//! instead of waiting for the slice of a busy device, web or client thread to end.
+//!
 //! Everything goes through maintained crates (`thread-priority` for the scheduling policy
-//! and nice values, `nix` for `mlockall` and resource limits): no `unsafe` here.
+//! and nice values, `nix` for `mlockall` and resource limits) except the slice, which no
+//! crate sets: [`slice`] is the one module with `unsafe`.
+#![deny(unsafe_code)]
+
+pub mod mailbox;
+pub mod slice;
+
+pub use mailbox::{mailbox, MailboxReceiver, MailboxSender};
 
 use std::fmt;
 use std::str::FromStr;
@@ -159,8 +172,9 @@ pub enum Obtained {
     /// Device, cyclic and simulator threads run under `SCHED_FIFO` at these levels; web
     /// threads at nice [`WEB_NICE`].
     Fifo(FifoLevels),
-    /// `SCHED_FIFO` is not permitted: device, cyclic and simulator threads at nice 0, web
-    /// threads at nice [`WEB_NICE`].
+    /// `SCHED_FIFO` is not permitted: device, cyclic and simulator threads at nice 0 (cyclic
+    /// ones with the fair scheduler's shortest slice, [`slice::MIN_SLICE`]), web threads at
+    /// nice [`WEB_NICE`].
     Nice,
 }
 
@@ -175,7 +189,7 @@ impl fmt::Display for Obtained {
             ),
             Obtained::Nice => write!(
                 f,
-                "nice levels: cyclic, device and simulator threads at nice 0, web threads at nice +{WEB_NICE}"
+                "nice levels: cyclic, device and simulator threads at nice 0 (cyclic with a 0.1 ms slice), web threads at nice +{WEB_NICE}"
             ),
         }
     }
@@ -186,7 +200,23 @@ static OBTAINED: OnceLock<Obtained> = OnceLock::new();
 /// Sets the process-wide policy (the first call decides; later calls return what the first
 /// obtained) and logs once what was obtained. Call it before starting any device thread.
 pub fn set_policy(policy: RealtimePolicy) -> Obtained {
-    *OBTAINED.get_or_init(|| decide(policy))
+    *OBTAINED.get_or_init(|| {
+        let obtained = decide(policy);
+        if obtained != Obtained::Off {
+            disable_huge_pages();
+        }
+        obtained
+    })
+}
+
+/// Turns transparent huge pages off for the process (`PR_SET_THP_DISABLE`): the first touch
+/// of a huge page zeroes 2 MiB inside whichever thread touched it, and a cyclic thread whose
+/// buffer grew into fresh memory was measured stalled 6 ms there. Pages are then 4 KiB, each
+/// faulted in microseconds. Logged when it fails.
+fn disable_huge_pages() {
+    if let Err(e) = nix::sys::prctl::set_thp_disable(true) {
+        tracing::warn!("real-time: transparent huge pages stay on ({e})");
+    }
 }
 
 /// What the process obtained ([`Obtained::Off`] until [`set_policy`] is called).
@@ -337,14 +367,23 @@ fn apply_class(obtained: Obtained, class: ThreadClass) -> Result<(), SchedError>
             let _ = set_nice(0);
         }),
         Obtained::Nice => {
-            if current_thread_scheduling().is_some_and(|s| s.nice == 0 && s.policy == Policy::Normal) {
-                return Ok(());
-            }
-            set_nice(0).map_err(|e| {
-                SchedError(format!(
-                    "{e} (a thread started by a web thread keeps nice +{WEB_NICE} without CAP_SYS_NICE)"
-                ))
-            })
+            let at_nice_0 =
+                current_thread_scheduling().is_some_and(|s| s.nice == 0 && s.policy == Policy::Normal);
+            let niced = if at_nice_0 {
+                Ok(())
+            } else {
+                set_nice(0).map_err(|e| {
+                    SchedError(format!(
+                        "{e} (a thread started by a web thread keeps nice +{WEB_NICE} without CAP_SYS_NICE)"
+                    ))
+                })
+            };
+            // Cyclic threads only: a short slice puts a thread ahead of those with the default
+            // slice, and a cycle is what must not wait. Asked for even when the nice value
+            // could not be lowered.
+            let sliced =
+                if class == ThreadClass::Cyclic { slice::request_slice(slice::MIN_SLICE) } else { Ok(()) };
+            niced.and(sliced)
         }
     }
 }
@@ -581,12 +620,17 @@ mod tests {
     /// no-op that succeeds. From a web thread it can only get back to 0 with CAP_SYS_NICE.
     #[test]
     fn nice_mode_puts_device_threads_at_nice_0() {
-        let s = in_thread(|| {
-            apply_class(Obtained::Nice, ThreadClass::Device).unwrap();
-            current_thread_scheduling().unwrap()
+        let (s, before, after) = in_thread(|| {
+            let before = slice::current_slice();
+            apply_class(Obtained::Nice, ThreadClass::Cyclic).unwrap();
+            (current_thread_scheduling().unwrap(), before, slice::current_slice())
         });
         assert_eq!(s.nice, 0);
         assert_eq!(s.policy, Policy::Normal);
+        // The shortest slice, where the kernel has slices (EEVDF, Linux 6.6+).
+        if before.is_some() {
+            assert_eq!(after, Some(slice::MIN_SLICE));
+        }
         let privileged = has_effective_capability(23); // CAP_SYS_NICE
         let (r, s) = in_thread(|| {
             apply_web(Obtained::Nice).unwrap();

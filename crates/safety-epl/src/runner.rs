@@ -7,10 +7,10 @@
 //! Between frames, [`OnlineSupervisor::tick`] stops the targets when the last lease expired
 //! (no frames: stale data is unsafe, and a silent segment must not keep drives running).
 
+use motus_realtime::MailboxReceiver;
 use std::io;
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
 use motus_epl::sim::Percentiles;
@@ -338,7 +338,8 @@ impl OnlineSupervisor {
 
     /// The supervisor loop, the only one (`motus safety run`, the station's juggler, the
     /// tests): until `stop` is set or `on_event` breaks, applies the pending `commands`
-    /// (operator stop and reset, integrity results, approved rules), then reads one frame
+    /// (operator stop and reset, integrity results, approved rules; a mailbox, never waited
+    /// for: [`motus_realtime::mailbox`]), then reads one frame
     /// from `link` (waiting at most `poll`) and evaluates it ([`OnlineSupervisor::on_frame`]),
     /// or checks the lease when none came ([`OnlineSupervisor::tick`]). Every event goes to
     /// `on_event`, and [`ServeEvent::Pass`] ends every pass (where a caller publishes its
@@ -352,7 +353,7 @@ impl OnlineSupervisor {
     pub fn run(
         &mut self,
         link: &dyn EthLink,
-        commands: &Receiver<Command>,
+        commands: &MailboxReceiver<Command>,
         stop: &AtomicBool,
         poll: Duration,
         mut on_event: impl FnMut(&Self, &ServeEvent) -> ControlFlow<()>,
@@ -362,7 +363,7 @@ impl OnlineSupervisor {
         motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
         let mut buf = vec![0u8; motus_epl::transport::MAX_FRAME];
         while !stop.load(Ordering::Relaxed) {
-            while let Ok(command) = commands.try_recv() {
+            for command in commands.try_take() {
                 if let Some(e) = self.apply(command) {
                     if on_event(self, &e).is_break() {
                         return Ok(());
@@ -399,8 +400,8 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
     use super::*;
     use crate::{juggler, EplLeaseTarget};
+    use motus_realtime::mailbox as channel;
     use motus_safety::JUGGLER_TOML;
-    use std::sync::mpsc::channel;
     use std::sync::Arc;
 
     fn inputs(rules: &RuleSet) -> InputMap {

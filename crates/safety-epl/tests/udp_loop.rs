@@ -2,9 +2,9 @@
 //! The supervisor in the loop of a simulated juggler, over the unprivileged UDP link on
 //! loopback: drives that need the safety lease, a monitor recording what really happened.
 
+use motus_realtime::{mailbox as channel, MailboxSender as Sender};
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{channel, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 

@@ -120,7 +120,7 @@ fn reaction_time_over_10000_unsafe_events_on_veth() {
             // expiry stops the drives and its revoke answers the event. Counted, not hidden.
             let mut expiries = 0usize;
             // No operator here: the command channel stays empty.
-            let (_commands, rx) = std::sync::mpsc::channel();
+            let (_commands, rx) = motus_realtime::mailbox();
             sup.run(&*sup_link, &rx, &stop, Duration::from_millis(5), |_, e| {
                 if matches!(e, ServeEvent::Online(OnlineEvent::Unsafe { reaction: None, diagnosis, .. }) if diagnosis.contains("lease expired")) {
                     expiries += 1;

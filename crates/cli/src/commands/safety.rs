@@ -3,7 +3,6 @@
 
 use std::ops::ControlFlow;
 use std::sync::atomic::Ordering;
-use std::sync::mpsc;
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -98,7 +97,7 @@ fn online(a: SafetyRunArgs) -> Result<()> {
     let target = EplLeaseTarget::new(Arc::clone(&link), origin, wire_lease, renew, [0; 8]);
     let mut sup = OnlineSupervisor::new(set.clone(), inputs, vec![Box::new(target)], origin, config);
     let stop = super::stop_flag()?;
-    let (commands, rx) = mpsc::channel::<Command>();
+    let (commands, rx) = motus_realtime::mailbox::<Command>();
     // Operator commands on standard input.
     let op = commands.clone();
     std::thread::spawn(move || {

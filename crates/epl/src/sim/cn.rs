@@ -18,7 +18,7 @@ use super::pdo::{
     Actual, SetPoint, CONTROL_ENABLE, CONTROL_QUICK_STOP, STATUS_ENABLED, STATUS_HOMED, STATUS_LEASE_STOP,
     STATUS_QUICK_STOP, STATUS_STANDSTILL,
 };
-use crate::transport::{EthLink, MAX_FRAME};
+use crate::transport::{EthLink, FrameHandler, MAX_FRAME};
 
 /// State a CN shares with the [`super::Segment`] handle.
 #[derive(Debug)]
@@ -260,24 +260,20 @@ impl Cn {
         }
     }
 
-    /// Runs until `stop` is set.
-    pub(crate) fn run(mut self, stop: &AtomicBool) {
-        let mut buf = vec![0u8; MAX_FRAME];
+    /// This CN as a receiver of its link's frames (run in the sending thread on an
+    /// in-process segment, or by a receiving thread: [`crate::transport::serve_on_thread`]).
+    pub(crate) fn into_handler(mut self) -> FrameHandler {
         self.set_state(NmtState::NotActive);
-        while !stop.load(Ordering::Relaxed) {
-            match self.link.recv(&mut buf, Duration::from_millis(20)) {
-                Ok(Some((n, at))) => {
-                    if let Ok(frame) = EplFrame::decode(buf.get(..n).unwrap_or(&[])) {
-                        self.handle_at(&frame, at);
-                    }
-                }
-                Ok(None) => {}
-                Err(e) => {
-                    tracing::warn!(node = self.node, "recv: {e}");
-                    std::thread::sleep(Duration::from_millis(5));
-                }
+        Box::new(move |bytes, at| {
+            if let Ok(frame) = EplFrame::decode(bytes) {
+                self.handle_at(&frame, at);
             }
-        }
+        })
+    }
+
+    /// The CN's link.
+    pub(crate) fn link(&self) -> Arc<dyn EthLink> {
+        Arc::clone(&self.link)
     }
 }
 

@@ -1,5 +1,8 @@
 //! A simulated POWERLINK segment: one Managing Node ([`MnConfig`]) and Controlled Nodes that
-//! behave like servo drives ([`DriveParams`]), each on its own [`EthLink`] and thread.
+//! behave like servo drives ([`DriveParams`]), each on its own [`EthLink`]. The MN has a
+//! thread; a CN runs in the sending thread when its link can ([`EthLink::attach_receiver`]:
+//! an in-process `mem://` segment, where a PReq is answered inside the MN's send), else on a
+//! receiving thread of its own.
 //!
 //! ```no_run
 //! use std::sync::Arc;
@@ -141,18 +144,24 @@ impl SegmentBuilder {
         let mut cns = Vec::new();
         let mut nodes = Vec::new();
         let mut spinning = Vec::new();
+        let mut attached = Vec::new();
         for (node, link, params) in self.drives {
             let shared = Arc::new(cn::CnShared { state: AtomicU8::new(NmtState::NotActive.raw()) });
             let cn = cn::Cn::new(node, link, params, Arc::clone(&shared));
             if self.spin_cns {
                 spinning.push(cn);
             } else {
-                let stop = Arc::clone(&stop);
-                let t = std::thread::Builder::new().name(format!("epl-cn{node}")).spawn(move || {
-                    motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Simulator);
-                    cn.run(&stop)
-                })?;
-                threads.push(t);
+                let link = cn.link();
+                match link.attach_receiver(cn.into_handler()) {
+                    Ok(()) => attached.push(link),
+                    Err(handler) => threads.push(crate::transport::serve_on_thread(
+                        format!("epl-cn{node}"),
+                        link,
+                        handler,
+                        Arc::clone(&stop),
+                        motus_realtime::ThreadClass::Simulator,
+                    )?),
+                }
             }
             cns.push((node, shared));
             nodes.push((node, params.initial_position.round() as i32));
@@ -178,10 +187,13 @@ impl SegmentBuilder {
             Ok(t) => threads.push(t),
             Err(e) => {
                 stop.store(true, Ordering::Relaxed);
+                for link in &attached {
+                    link.detach_receiver();
+                }
                 return Err(e.into());
             }
         }
-        Ok(Segment { stop, threads, mn: mn_shared, cns })
+        Ok(Segment { stop, threads, attached, mn: mn_shared, cns })
     }
 }
 
@@ -189,6 +201,8 @@ impl SegmentBuilder {
 pub struct Segment {
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
+    /// Links whose CN runs in the sending thread (detached on stop).
+    attached: Vec<Arc<dyn EthLink>>,
     mn: Arc<mn::MnShared>,
     cns: Vec<(u8, Arc<cn::CnShared>)>,
 }
@@ -251,6 +265,10 @@ impl Segment {
             if t.join().is_err() {
                 tracing::warn!("a segment thread panicked");
             }
+        }
+        // The MN is stopped: no more frames reach these CNs from it.
+        for link in self.attached.drain(..) {
+            link.detach_receiver();
         }
     }
 }

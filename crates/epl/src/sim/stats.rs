@@ -31,6 +31,65 @@ impl Percentiles {
     }
 }
 
+/// The most recent samples of a figure, at most [`SampleWindow::CAPACITY`]: a segment that
+/// runs for days keeps its memory flat (a 1 ms cycle adds 6,000 samples a second). The
+/// whole window is allocated and written when it is made (by the thread that makes the
+/// statistics), so that the MN's cycle thread never grows a buffer or faults in a fresh page.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SampleWindow {
+    /// `CAPACITY` slots; the first `len` hold samples.
+    samples: Vec<u64>,
+    len: usize,
+    /// Where the next sample goes once the window is full.
+    next: usize,
+    /// Samples ever pushed.
+    total: u64,
+}
+
+impl SampleWindow {
+    /// Samples kept (the most recent; 512 KiB).
+    pub const CAPACITY: usize = 1 << 16;
+
+    /// Adds a sample, replacing the oldest when the window is full.
+    pub fn push(&mut self, sample: u64) {
+        self.total += 1;
+        if self.len < Self::CAPACITY {
+            if let Some(slot) = self.samples.get_mut(self.len) {
+                *slot = sample;
+            }
+            self.len += 1;
+            return;
+        }
+        if let Some(slot) = self.samples.get_mut(self.next) {
+            *slot = sample;
+        }
+        self.next = (self.next + 1) % Self::CAPACITY;
+    }
+
+    /// The samples kept (in no particular order).
+    pub fn samples(&self) -> &[u64] {
+        self.samples.get(..self.len).unwrap_or(&[])
+    }
+
+    /// Samples ever pushed (kept or not).
+    pub fn total(&self) -> u64 {
+        self.total
+    }
+
+    /// Percentiles of the samples kept.
+    pub fn percentiles(&self) -> Percentiles {
+        Percentiles::of(self.samples())
+    }
+}
+
+impl Default for SampleWindow {
+    fn default() -> Self {
+        // Not zeros: a zeroed allocation comes from fresh pages that are only faulted in when
+        // first written; a non-zero fill writes (and so faults in) every page now.
+        Self { samples: vec![u64::MAX; Self::CAPACITY], len: 0, next: 0, total: 0 }
+    }
+}
+
 /// What the Managing Node counted.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct MnStats {
@@ -40,16 +99,17 @@ pub struct MnStats {
     pub operational_cycles: u64,
     /// Reduced PreOp1 cycles (SoA only).
     pub reduced_cycles: u64,
-    /// Lateness of each full cycle start after its deadline (ns), SoC send time.
-    pub start_late_ns: Vec<u64>,
+    /// Lateness of each full cycle start after its deadline (ns), SoC send time (the most
+    /// recent cycles).
+    pub start_late_ns: SampleWindow,
     /// Cycles whose work overran the next deadline (that deadline was skipped).
     pub overruns: u64,
     /// PReq that got no PRes before the PRes time-out, per node (counted in OPERATIONAL).
     pub pres_missed: BTreeMap<u8, u64>,
     /// PRes sent by a node but received after its time-out.
     pub pres_late: u64,
-    /// PReq -> PRes round-trip times in OPERATIONAL (ns).
-    pub pres_rtt_ns: Vec<u64>,
+    /// PReq -> PRes round-trip times in OPERATIONAL (ns; the most recent).
+    pub pres_rtt_ns: SampleWindow,
     /// Frames received that failed to decode.
     pub decode_errors: u64,
     /// Send errors.
@@ -59,12 +119,12 @@ pub struct MnStats {
 impl MnStats {
     /// Percentiles of the cycle start lateness.
     pub fn jitter(&self) -> Percentiles {
-        Percentiles::of(&self.start_late_ns)
+        self.start_late_ns.percentiles()
     }
 
     /// Percentiles of the PReq -> PRes round trip.
     pub fn rtt(&self) -> Percentiles {
-        Percentiles::of(&self.pres_rtt_ns)
+        self.pres_rtt_ns.percentiles()
     }
 
     /// Total PRes misses over all nodes.
@@ -84,5 +144,18 @@ mod tests {
         let p = Percentiles::of(&v);
         assert_eq!((p.count, p.p50, p.p99, p.max), (100, 50, 99, 100));
         assert_eq!(Percentiles::of(&[]), Percentiles::default());
+    }
+
+    #[test]
+    fn a_window_keeps_the_most_recent_samples_only() {
+        let mut w = SampleWindow::default();
+        let n = SampleWindow::CAPACITY as u64 + 10;
+        for i in 0..n {
+            w.push(i);
+        }
+        assert_eq!(w.samples().len(), SampleWindow::CAPACITY);
+        assert_eq!(w.total(), n);
+        assert!(!w.samples().contains(&9), "the oldest were replaced");
+        assert_eq!(w.percentiles().max, n - 1);
     }
 }

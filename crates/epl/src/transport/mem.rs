@@ -14,34 +14,90 @@
 //! counted); a send copies the frame into every other port's queue and wakes its reader. A
 //! port never receives its own frames, and there is no MAC filtering (a hub). Each port has a
 //! locally administered MAC `02:00:6d:65:PP:PP` (PP = its number on the hub).
+//!
+//! A port may instead have a receiver run in the sending thread
+//! ([`EthLink::attach_receiver`]): the simulated drives of an in-process segment need no
+//! thread of their own, so a PReq is answered inside the MN's send, with no wake-up of another
+//! thread (on a loaded 2-core host every wake-up is a chance to wait behind other work).
+//! Frames for such ports go to the hub's pending list, delivered in order by one thread at a
+//! time: the sender waits for a thread that is delivering (microseconds), then delivers what
+//! is left, so that its frame has been handled when its send returns. A receiver's own sends
+//! are delivered after it returns, never nested.
 
 use std::collections::{HashMap, VecDeque};
 use std::io;
-use std::sync::atomic::{AtomicU16, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU16, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, OnceLock, PoisonError, RwLock, Weak};
 use std::time::{Duration, Instant};
 
 use motus_epl_protocol::MacAddr;
 
-use super::{EthLink, MAX_FRAME};
+use super::{EthLink, FrameHandler, MAX_FRAME};
 
 /// Frames a port's queue holds before the oldest is dropped (a NIC ring's size).
 pub const MEM_QUEUE_FRAMES: usize = 256;
 
-/// One port's receive queue.
-#[derive(Debug, Default)]
+/// One port's receive queue, or its receiver run in the sending thread.
+#[derive(Default)]
 struct Port {
     number: u16,
     queue: Mutex<VecDeque<(Vec<u8>, Instant)>>,
     ready: Condvar,
     dropped: AtomicU64,
+    /// Set while `receiver` holds a handler (read on every send without taking its lock).
+    inline: AtomicBool,
+    receiver: Mutex<Option<FrameHandler>>,
 }
+
+impl std::fmt::Debug for Port {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Port")
+            .field("number", &self.number)
+            .field("inline", &self.inline.load(Ordering::Relaxed))
+            .finish_non_exhaustive()
+    }
+}
+
+/// A frame waiting for a port's receiver.
+type Pending = (Arc<Port>, Vec<u8>, Instant);
 
 #[derive(Debug, Default)]
 struct Medium {
     name: String,
     ports: RwLock<Vec<Arc<Port>>>,
     next: AtomicU16,
+    /// Frames for ports with a receiver, in sending order.
+    pending: Mutex<VecDeque<Pending>>,
+    /// Held by the one thread delivering `pending`.
+    delivering: Mutex<()>,
+}
+
+thread_local! {
+    /// Set while this thread delivers pending frames (a receiver that sends must not nest).
+    static DELIVERING: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+impl Medium {
+    /// Delivers the pending frames in this thread, after any other thread that is delivering
+    /// has finished (delivering is quick: the receivers are simulated nodes' handlers). A
+    /// receiver's own sends, made while this thread delivers, are delivered by the same loop.
+    fn deliver_pending(&self) {
+        if DELIVERING.with(std::cell::Cell::get) {
+            return;
+        }
+        let guard = self.delivering.lock().unwrap_or_else(PoisonError::into_inner);
+        DELIVERING.with(|d| d.set(true));
+        loop {
+            let next = self.pending.lock().unwrap_or_else(PoisonError::into_inner).pop_front();
+            let Some((port, frame, at)) = next else { break };
+            let mut receiver = port.receiver.lock().unwrap_or_else(PoisonError::into_inner);
+            if let Some(handler) = receiver.as_mut() {
+                handler(&frame, at);
+            }
+        }
+        DELIVERING.with(|d| d.set(false));
+        drop(guard);
+    }
 }
 
 /// The hubs of the process by name; a hub lives while one of its links does.
@@ -115,7 +171,14 @@ impl EthLink for MemLink {
         }
         let now = Instant::now();
         let ports = self.medium.ports.read().unwrap_or_else(PoisonError::into_inner);
+        let mut inline = false;
         for p in ports.iter().filter(|p| !Arc::ptr_eq(p, &self.port)) {
+            if p.inline.load(Ordering::Acquire) {
+                let mut pending = self.medium.pending.lock().unwrap_or_else(PoisonError::into_inner);
+                pending.push_back((Arc::clone(p), frame.to_vec(), now));
+                inline = true;
+                continue;
+            }
             let mut q = p.queue.lock().unwrap_or_else(PoisonError::into_inner);
             if q.len() >= MEM_QUEUE_FRAMES {
                 q.pop_front();
@@ -124,6 +187,10 @@ impl EthLink for MemLink {
             q.push_back((frame.to_vec(), now));
             drop(q);
             p.ready.notify_one();
+        }
+        drop(ports);
+        if inline {
+            self.medium.deliver_pending();
         }
         Ok(())
     }
@@ -153,6 +220,19 @@ impl EthLink for MemLink {
 
     fn describe(&self) -> String {
         format!("mem {} port {}", self.medium.name, self.port.number)
+    }
+
+    fn attach_receiver(&self, handler: FrameHandler) -> Result<(), FrameHandler> {
+        *self.port.receiver.lock().unwrap_or_else(PoisonError::into_inner) = Some(handler);
+        self.port.inline.store(true, Ordering::Release);
+        Ok(())
+    }
+
+    fn detach_receiver(&self) {
+        self.port.inline.store(false, Ordering::Release);
+        // Taken out under the lock, dropped after it: a handler may own this very link.
+        let handler = self.port.receiver.lock().unwrap_or_else(PoisonError::into_inner).take();
+        drop(handler);
     }
 }
 
@@ -213,6 +293,37 @@ mod tests {
         b.recv(&mut buf, Duration::from_millis(10)).unwrap().unwrap();
         assert_eq!(buf[0], 3, "the oldest three were dropped");
         assert!(a.send(&vec![0; MAX_FRAME + 1]).is_err());
+    }
+
+    #[test]
+    fn a_receiver_runs_in_the_sending_thread_and_its_own_sends_follow_in_order() {
+        let hub = MemHub::named("test-inline");
+        let (a, b, c) = (hub.connect(), Arc::new(hub.connect()), hub.connect());
+        let seen = Arc::new(Mutex::new(Vec::new()));
+        let (echo, log) = (Arc::clone(&b), Arc::clone(&seen));
+        let sender = std::thread::current().id();
+        b.attach_receiver(Box::new(move |frame, _| {
+            assert_eq!(std::thread::current().id(), sender);
+            log.lock().unwrap().push(frame.to_vec());
+            // An answer sent from inside the receiver: queued for the others, not nested.
+            echo.send(&[frame[0] + 100]).unwrap();
+        }))
+        .map_err(|_| "not attached")
+        .unwrap();
+        a.send(&[1]).unwrap();
+        a.send(&[2]).unwrap();
+        assert_eq!(*seen.lock().unwrap(), vec![vec![1], vec![2]]);
+        let mut buf = [0u8; 4];
+        let order: Vec<u8> =
+            std::iter::from_fn(|| c.recv(&mut buf, Duration::from_millis(10)).unwrap().map(|_| buf[0]))
+                .collect();
+        assert_eq!(order, vec![1, 101, 2, 102], "each answer follows its request");
+        // Detached: frames are queued again, and the handler (which owns `b`) is dropped.
+        b.detach_receiver();
+        a.send(&[3]).unwrap();
+        assert_eq!(seen.lock().unwrap().len(), 2);
+        assert!(b.recv(&mut buf, Duration::from_millis(10)).unwrap().is_some());
+        assert_eq!(Arc::strong_count(&b), 1);
     }
 
     #[test]

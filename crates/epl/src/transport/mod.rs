@@ -27,6 +27,10 @@ pub use udp::{UdpHub, UdpLink};
 /// Largest frame a link passes (1514 bytes without FCS, plus room for a VLAN tag).
 pub const MAX_FRAME: usize = 1518;
 
+/// A receiver that a link runs for every frame its port receives, in the sending thread
+/// ([`EthLink::attach_receiver`]): the frame's bytes and the time it was sent.
+pub type FrameHandler = Box<dyn FnMut(&[u8], Instant) + Send>;
+
 /// One port on an Ethernet medium carrying POWERLINK frames.
 pub trait EthLink: Send + Sync {
     /// Sends one Ethernet frame (destination MAC first, no FCS).
@@ -39,6 +43,18 @@ pub trait EthLink: Send + Sync {
     fn mac(&self) -> MacAddr;
     /// A human-readable description ("udp 127.0.0.1:40001", "raw eth0").
     fn describe(&self) -> String;
+    /// Delivers every frame this port receives to `handler`, run in the thread that sent the
+    /// frame, instead of queueing it for [`EthLink::recv`]: a node served this way needs no
+    /// thread of its own. Only an in-process medium can ([`MemLink`]); every other link
+    /// gives the handler back (its node needs a receiving thread: [`serve_on_thread`]).
+    ///
+    /// # Errors
+    /// The link cannot deliver frames in the sending thread: the handler, unused.
+    fn attach_receiver(&self, handler: FrameHandler) -> Result<(), FrameHandler> {
+        Err(handler)
+    }
+    /// Ends [`EthLink::attach_receiver`] and drops the handler: frames are queued again.
+    fn detach_receiver(&self) {}
 }
 
 impl<T: EthLink + ?Sized> EthLink for Arc<T> {
@@ -53,6 +69,12 @@ impl<T: EthLink + ?Sized> EthLink for Arc<T> {
     }
     fn describe(&self) -> String {
         (**self).describe()
+    }
+    fn attach_receiver(&self, handler: FrameHandler) -> Result<(), FrameHandler> {
+        (**self).attach_receiver(handler)
+    }
+    fn detach_receiver(&self) {
+        (**self).detach_receiver();
     }
 }
 
@@ -69,6 +91,41 @@ impl<T: EthLink + ?Sized> EthLink for Box<T> {
     fn describe(&self) -> String {
         (**self).describe()
     }
+    fn attach_receiver(&self, handler: FrameHandler) -> Result<(), FrameHandler> {
+        (**self).attach_receiver(handler)
+    }
+    fn detach_receiver(&self) {
+        (**self).detach_receiver();
+    }
+}
+
+/// Serves `handler` from a thread of its own called `name` (for a link that cannot deliver in
+/// the sending thread, see [`EthLink::attach_receiver`]): every received frame goes to the
+/// handler until `stop` is set. A receive error is logged and retried after 5 ms.
+///
+/// # Errors
+/// The thread could not be spawned.
+pub fn serve_on_thread(
+    name: String,
+    link: Arc<dyn EthLink>,
+    mut handler: FrameHandler,
+    stop: Arc<std::sync::atomic::AtomicBool>,
+    class: motus_realtime::ThreadClass,
+) -> io::Result<std::thread::JoinHandle<()>> {
+    std::thread::Builder::new().name(name).spawn(move || {
+        motus_realtime::promote_current_thread(class);
+        let mut buf = vec![0u8; MAX_FRAME];
+        while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+            match link.recv(&mut buf, Duration::from_millis(20)) {
+                Ok(Some((n, at))) => handler(buf.get(..n).unwrap_or(&[]), at),
+                Ok(None) => {}
+                Err(e) => {
+                    tracing::warn!(link = %link.describe(), "recv: {e}");
+                    std::thread::sleep(Duration::from_millis(5));
+                }
+            }
+        }
+    })
 }
 
 /// Receives from a non-blocking socket with a precise time-out: `try_recv` is attempted, and
