@@ -26,12 +26,12 @@
 //! web thread without permission to lower its nice value keeps the web's +10 (logged once).
 //!
 //! Under nice levels the cyclic threads also ask the fair scheduler for its shortest time
-//! slice ([`slice`]): a thread that wakes every millisecond then runs first when it wakes
+//! slice ([`mod@slice`]): a thread that wakes every millisecond then runs first when it wakes
 //! instead of waiting for the slice of a busy device, web or client thread to end.
 //!
 //! Everything goes through maintained crates (`thread-priority` for the scheduling policy
 //! and nice values, `nix` for `mlockall` and resource limits) except the slice, which no
-//! crate sets: [`slice`] is the one module with `unsafe`.
+//! crate sets: [`mod@slice`] is the one module with `unsafe`.
 #![deny(unsafe_code)]
 
 pub mod mailbox;

@@ -339,7 +339,7 @@ impl OnlineSupervisor {
     /// The supervisor loop, the only one (`motus safety run`, the station's juggler, the
     /// tests): until `stop` is set or `on_event` breaks, applies the pending `commands`
     /// (operator stop and reset, integrity results, approved rules; a mailbox, never waited
-    /// for: [`motus_realtime::mailbox`]), then reads one frame
+    /// for: [`motus_realtime::mailbox()`]), then reads one frame
     /// from `link` (waiting at most `poll`) and evaluates it ([`OnlineSupervisor::on_frame`]),
     /// or checks the lease when none came ([`OnlineSupervisor::tick`]). Every event goes to
     /// `on_event`, and [`ServeEvent::Pass`] ends every pass (where a caller publishes its
