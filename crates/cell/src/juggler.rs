@@ -57,6 +57,8 @@ pub struct SupervisorSnapshot {
     pub samples: Vec<(String, Option<Sample>)>,
     /// Frames processed.
     pub frames: u64,
+    /// Integrity check results the supervisor applied (grows while the files are watched).
+    pub integrity_checks: u64,
     /// Times the drives were stopped.
     pub stops: u64,
     /// SafeToRun became true this many times.
@@ -76,6 +78,7 @@ impl Default for SupervisorSnapshot {
             reaches: Vec::new(),
             samples: Vec::new(),
             frames: 0,
+            integrity_checks: 0,
             stops: 0,
             safe_events: 0,
             unsafe_events: 0,
@@ -412,6 +415,7 @@ fn supervise(
                     mine.held = sup.held();
                     mine.integrity.clone_from(sup.integrity());
                     mine.frames = sup.frames();
+                    mine.integrity_checks = sup.integrity_checks();
                     mine.stops = sup.stops();
                     mine.reaches =
                         names.iter().cloned().zip(sup.supervisor().reaches().iter().copied()).collect();

@@ -36,11 +36,7 @@ fn rig() -> Rig {
     let (d, s) = (Arc::clone(&drives), Arc::clone(&stop));
     std::thread::spawn(move || motus_icla_sim::run_shared(sim_bus, d, s));
     // The drive's boot-up message (liveness bound only).
-    let booted = std::time::Instant::now();
-    while master.boot_count(5) == 0 {
-        assert!(booted.elapsed() < Duration::from_secs(10), "no boot-up");
-        std::thread::sleep(Duration::from_millis(1));
-    }
+    master.wait_boots(5, 1, Duration::from_secs(10)).expect("no boot-up");
     let mut io = CanopenDrive::new(master, 5);
     io.use_pdos().unwrap();
     let drive = Drive::new(io, DriveSettings::default());

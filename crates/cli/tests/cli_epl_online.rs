@@ -7,7 +7,7 @@ mod common;
 use common::{SimProcess, MOTUS};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command, Output, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -99,6 +99,31 @@ impl Drop for Lines {
     }
 }
 
+fn path(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// `motus safety approve` of `rules` (and `drives`) signed with `key` by `admin` into
+/// `approval`.
+fn safety_approve(rules: &Path, drives: Option<&Path>, key: &Path, admin: &str, approval: &Path) -> Output {
+    let mut c = Command::new(MOTUS);
+    c.args(["safety", "approve", "--rules", path(rules)]);
+    if let Some(d) = drives {
+        c.args(["--drives", path(d)]);
+    }
+    c.args(["--key", path(key), "--admin", admin, "--out", path(approval)]).output().unwrap()
+}
+
+/// `motus safety run` of `rules` (and `drives`) on segment `seg`, approved by `approval`.
+fn safety_run(rules: &Path, drives: Option<&Path>, seg: &str, approval: &Path, key: &Path) -> Lines {
+    let mut args = vec!["safety", "run", "--rules", path(rules)];
+    if let Some(d) = drives {
+        args.extend(["--drives", path(d)]);
+    }
+    args.extend(["--if", seg, "--approval", path(approval), "--key", path(key)]);
+    Lines::start(&args)
+}
+
 #[test]
 fn online_supervisor_stops_a_student_program_and_blocks_on_an_unapproved_change() {
     let dir = tempfile::tempdir().unwrap();
@@ -107,44 +132,18 @@ fn online_supervisor_stops_a_student_program_and_blocks_on_an_unapproved_change(
     std::fs::write(&key, "a-secret-administrator-key-0123456789\n").unwrap();
     let approval = dir.path().join("juggler.approved");
     let seg = format!("udp://127.0.0.1:{}", free_segment());
-    let s = |p: &Path| p.to_str().unwrap().to_owned();
 
     // Administrator approves the rules.
-    let o = Command::new(MOTUS)
-        .args([
-            "safety",
-            "approve",
-            "--rules",
-            &s(&rules),
-            "--key",
-            &s(&key),
-            "--admin",
-            "alice",
-            "--out",
-            &s(&approval),
-        ])
-        .output()
-        .unwrap();
+    let o = safety_approve(&rules, None, &key, "alice", &approval);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["approved"].as_str().unwrap().len(), 64);
 
     // The supervisor, then the machine running a student program that aims beyond a limit.
-    let mut sup = Lines::start(&[
-        "safety",
-        "run",
-        "--rules",
-        &s(&rules),
-        "--if",
-        &seg,
-        "--approval",
-        &s(&approval),
-        "--key",
-        &s(&key),
-    ]);
+    let mut sup = safety_run(&rules, None, &seg, &approval, &key);
     std::thread::sleep(Duration::from_millis(300));
     let _sim = SimProcess::start(
-        &["sim", "epl", "--if", &seg, "--config", &s(&rules), "--program", "limit"],
+        &["sim", "epl", "--if", &seg, "--config", path(&rules), "--program", "limit"],
         "segment OPERATIONAL",
     );
     // The drives' layout (status 0, position 16, speed 20) for nodes 1..=5.
@@ -175,7 +174,7 @@ fn online_supervisor_stops_a_student_program_and_blocks_on_an_unapproved_change(
     eprintln!("stop: {stop}");
 
     // A monitor in a third process sees every drive stopped by the revoked lease.
-    let mon = Lines::start(&["epl", "monitor", "--if", &seg, "--map", &s(&monitor_map), "--cycles", "400"]);
+    let mon = Lines::start(&["epl", "monitor", "--if", &seg, "--map", path(&monitor_map), "--cycles", "400"]);
     let mut last = serde_json::Value::Null;
     for _ in 0..400 {
         let l = mon.wait_for(&["\"cycle\""], Duration::from_secs(5));
@@ -199,21 +198,7 @@ fn online_supervisor_stops_a_student_program_and_blocks_on_an_unapproved_change(
     // A forged approval (signed with another key) is refused too.
     let other_key = dir.path().join("other.key");
     std::fs::write(&other_key, "not-the-administrator-key-000000").unwrap();
-    let o = Command::new(MOTUS)
-        .args([
-            "safety",
-            "approve",
-            "--rules",
-            &s(&rules),
-            "--key",
-            &s(&other_key),
-            "--admin",
-            "mallory",
-            "--out",
-            &s(&approval),
-        ])
-        .output()
-        .unwrap();
+    let o = safety_approve(&rules, None, &other_key, "mallory", &approval);
     assert!(o.status.success());
     let still =
         sup.wait_for(&["\"event\":\"integrity\"", "signature does not match"], Duration::from_secs(5));
@@ -231,31 +216,13 @@ fn safety_run_watches_the_approved_drive_parameters() {
     std::fs::write(&key, "a-secret-administrator-key-0123456789\n").unwrap();
     let approval = dir.path().join("juggler.approved");
     let seg = format!("udp://127.0.0.1:{}", free_segment());
-    let s = |p: &Path| p.to_str().unwrap().to_owned();
     let approve = || {
-        let o = Command::new(MOTUS)
-            .args(["safety", "approve", "--rules", &s(&rules), "--drives", &s(&drives)])
-            .args(["--key", &s(&key), "--admin", "alice", "--out", &s(&approval)])
-            .output()
-            .unwrap();
+        let o = safety_approve(&rules, Some(&drives), &key, "alice", &approval);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         String::from_utf8_lossy(&o.stderr).into_owned()
     };
     approve();
-    let sup = Lines::start(&[
-        "safety",
-        "run",
-        "--rules",
-        &s(&rules),
-        "--drives",
-        &s(&drives),
-        "--if",
-        &seg,
-        "--approval",
-        &s(&approval),
-        "--key",
-        &s(&key),
-    ]);
+    let sup = safety_run(&rules, Some(&drives), &seg, &approval, &key);
     sup.wait_for(&["\"event\":\"integrity\"", "\"ok\":true"], Duration::from_secs(10));
     // The thrower's quick-stop deceleration lowered on disk, without approval: named.
     std::fs::write(&drives, shipped.replace("a_stop = 20000000.0", "a_stop = 15000000.0")).unwrap();

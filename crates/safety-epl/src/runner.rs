@@ -124,6 +124,7 @@ pub struct OnlineSupervisor {
     safe: Option<bool>,
     reaction: ReactionStats,
     frames: u64,
+    integrity_checks: u64,
 }
 
 impl OnlineSupervisor {
@@ -150,6 +151,7 @@ impl OnlineSupervisor {
             safe: None,
             reaction: ReactionStats::default(),
             frames: 0,
+            integrity_checks: 0,
         }
     }
 
@@ -193,6 +195,12 @@ impl OnlineSupervisor {
     /// Frames processed.
     pub fn frames(&self) -> u64 {
         self.frames
+    }
+
+    /// Integrity check results applied ([`Command::Integrity`]), changed or not: a count
+    /// that grows shows the configuration is being watched.
+    pub fn integrity_checks(&self) -> u64 {
+        self.integrity_checks
     }
 
     /// How many times the targets were stopped.
@@ -321,6 +329,7 @@ impl OnlineSupervisor {
                 Some(ServeEvent::Reset)
             }
             Command::Integrity(result) => {
+                self.integrity_checks += 1;
                 let changed = result != self.integrity;
                 self.set_integrity(result);
                 changed.then(|| ServeEvent::Integrity(self.integrity.clone()))
@@ -461,6 +470,8 @@ mod tests {
             ]
         );
         assert_eq!(sup.supervisor().rules().config().supervisor.max_sample_age, 2);
+        // Both results count as checks, although only the first changed anything.
+        assert_eq!(sup.integrity_checks(), 2);
         assert!(
             sup.integrity().as_ref().unwrap_err().contains("new rules installed"),
             "{:?}",

@@ -5,7 +5,7 @@
 use motus_realtime::{mailbox as channel, MailboxSender as Sender};
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use motus_epl::sim::{MnConfig, Segment};
@@ -25,9 +25,43 @@ struct Rig {
     stop_sup: Arc<AtomicBool>,
     sup: Option<std::thread::JoinHandle<OnlineSupervisor>>,
     commands: Sender<Command>,
-    events: Arc<Mutex<Vec<ServeEvent>>>,
+    events: Arc<Events>,
     stop_mon: Arc<AtomicBool>,
     trace: Trace,
+}
+
+/// The supervisor's events (passes left out), with a wake-up on each.
+#[derive(Default)]
+struct Events {
+    list: Mutex<Vec<ServeEvent>>,
+    added: Condvar,
+}
+
+impl Events {
+    fn push(&self, e: ServeEvent) {
+        self.list.lock().unwrap().push(e);
+        self.added.notify_all();
+    }
+
+    fn snapshot(&self) -> Vec<ServeEvent> {
+        self.list.lock().unwrap().clone()
+    }
+
+    /// Waits until `done` holds for the events from index `from` on; returns them.
+    fn wait_from(
+        &self,
+        from: usize,
+        timeout: Duration,
+        what: &str,
+        done: impl Fn(&[ServeEvent]) -> bool,
+    ) -> Vec<ServeEvent> {
+        let list = self.list.lock().unwrap();
+        let (list, r) =
+            self.added.wait_timeout_while(list, timeout, |l| !done(l.get(from..).unwrap_or(&[]))).unwrap();
+        let after = list.get(from..).unwrap_or(&[]).to_vec();
+        assert!(!r.timed_out(), "not {what} within {timeout:?}: {after:?}");
+        after
+    }
 }
 
 /// The juggler's rules for a 1 ms cycle (the UDP link on a shared CI machine does not hold
@@ -104,14 +138,14 @@ fn rig(pattern: Pattern, restart: motus_safety::Restart) -> Rig {
     );
     sup.set_integrity(Ok(()));
     let stop_sup = Arc::new(AtomicBool::new(false));
-    let events = Arc::new(Mutex::new(Vec::new()));
+    let events = Arc::new(Events::default());
     let (commands, rx) = channel();
     let handle = {
         let (stop, events) = (Arc::clone(&stop_sup), Arc::clone(&events));
         std::thread::spawn(move || {
             sup.run(&*sup_link, &rx, &stop, Duration::from_millis(1), |_, e| {
                 if *e != ServeEvent::Pass {
-                    events.lock().unwrap().push(e.clone());
+                    events.push(e.clone());
                 }
                 ControlFlow::Continue(())
             })
@@ -138,7 +172,7 @@ fn student_program_beyond_the_limit_is_stopped_before_the_limit() {
     let mut rig = rig(Pattern::Limit, motus_safety::Restart::Manual);
     // The cam reaches the limit (3400 units = 34 000 raw) within half a period.
     std::thread::sleep(Duration::from_millis(1500));
-    let events = rig.events.lock().unwrap().clone();
+    let events = rig.events.snapshot();
     // The first stop by a rule: `limits_thrower` as a rule, or (on a loaded host, whose late
     // samples widen the predicted reach) another axis's rule a moment earlier. Either way the
     // thrower must not pass its limit, checked below.
@@ -165,29 +199,22 @@ fn student_program_beyond_the_limit_is_stopped_before_the_limit() {
     assert!(last.2.iter().all(|s| s & motus_epl::sim::pdo::STATUS_LEASE_STOP != 0), "{:?}", last.2);
     // The operator's reset goes through the loop's command channel: applied, the drives run
     // again (safe, no longer held), and the program is stopped again by a rule.
-    let n = rig.events.lock().unwrap().len();
+    let n = rig.events.snapshot().len();
     rig.commands.send(Command::Reset).unwrap();
-    let t0 = Instant::now();
-    loop {
-        let after = rig.events.lock().unwrap()[n..].to_vec();
+    rig.events.wait_from(n, Duration::from_secs(20), "reset, run and stopped again", |after| {
         let released = after.iter().position(|e| *e == ServeEvent::Reset).and_then(|i| {
             after[i..]
                 .iter()
                 .position(|e| matches!(e, ServeEvent::Online(OnlineEvent::Safe { held: false, .. })))
                 .map(|j| i + j)
         });
-        let stopped_again = released.is_some_and(|i| {
+        released.is_some_and(|i| {
             after[i..].iter().any(|e| {
                 matches!(e, ServeEvent::Online(OnlineEvent::Unsafe { diagnosis, reaction: Some(_), .. })
                     if diagnosis.starts_with("rule "))
             })
-        });
-        if stopped_again {
-            break;
-        }
-        assert!(t0.elapsed() < Duration::from_secs(20), "no reset, run and stop: {after:?}");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+        })
+    });
     let sup = {
         rig.stop_sup.store(true, Ordering::Relaxed);
         rig.sup.take().unwrap().join().unwrap()
@@ -208,8 +235,7 @@ fn juggling_runs_and_drives_stop_on_their_own_when_the_supervisor_dies() {
     assert!(moving, "the juggler should move under a valid lease");
     let unsafe_events = rig
         .events
-        .lock()
-        .unwrap()
+        .snapshot()
         .iter()
         .filter_map(|e| match e {
             ServeEvent::Online(OnlineEvent::Unsafe { diagnosis, cycle, .. }) => {

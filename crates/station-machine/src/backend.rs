@@ -437,6 +437,7 @@ impl MachineBackend for StationMachine {
                 rules_name: "none".into(),
                 rules_fingerprint: String::new(),
                 predicted: Vec::new(),
+                integrity_checks: 0,
             };
         };
         let s = j.snapshot();
@@ -477,6 +478,7 @@ impl MachineBackend for StationMachine {
                 .unwrap_or_else(PoisonError::into_inner)
                 .clone(),
             predicted,
+            integrity_checks: s.integrity_checks,
         }
     }
 

@@ -8,23 +8,10 @@
 
 mod common;
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use common::{safety, station, wait_safe, Client};
+use common::{safety, station, wait_safe, wait_safety, Client};
 use serde_json::{json, Value};
-
-/// Polls `GET /api/safety` until `done` holds.
-fn wait_safety(c: &Client, timeout: Duration, what: &str, done: impl Fn(&Value) -> bool) -> Value {
-    let t0 = Instant::now();
-    loop {
-        let s = safety(c);
-        if done(&s) {
-            return s;
-        }
-        assert!(t0.elapsed() < timeout, "not {what} within {timeout:?}: {s}");
-        std::thread::sleep(Duration::from_millis(100));
-    }
-}
 
 #[test]
 fn a_changed_juggler_drive_parameter_blocks_the_juggler_and_is_named() {
@@ -83,8 +70,11 @@ fn a_changed_juggler_drive_parameter_blocks_the_juggler_and_is_named() {
     }
     // An operator's reset does not release it while the change stands.
     admin.ok("POST", "/api/reset", Value::Null);
-    std::thread::sleep(Duration::from_millis(1500)); // past the next integrity check
-    let s = safety(&admin);
+    // The next integrity check, applied after the reset (one mailbox, in order).
+    let checks = safety(&admin)["integrity_checks"].as_u64().unwrap();
+    let s = wait_safety(&admin, Duration::from_secs(30), "checked again", |s| {
+        s["integrity_checks"].as_u64().unwrap() > checks
+    });
     assert_eq!(s["safe_to_run"], false, "{s}");
     assert!(s["diagnosis"].as_str().unwrap().contains("drive[thrower].a_stop"), "{s}");
 

@@ -268,6 +268,10 @@ pub struct SafetyView {
     pub rules_fingerprint: String,
     /// Predicted stop positions and distances to the limits.
     pub predicted: Vec<PredictedReach>,
+    /// Integrity checks of the approved configuration applied by the supervisor so far (0
+    /// without a supervisor or with the check disabled): it grows while the files are watched.
+    #[serde(default)]
+    pub integrity_checks: u64,
 }
 
 /// A program stored on the station.

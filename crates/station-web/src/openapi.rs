@@ -330,7 +330,7 @@ fn schemas() -> Value {
             "limits": r("AxisLimits"), "acceleration": num } },
         "SafetyView": { "type": "object", "readOnly": true, "properties": {
             "safe_to_run": { "type": "boolean", "readOnly": true }, "held": b, "estop": b, "diagnosis": s,
-            "rules_name": s, "rules_fingerprint": s,
+            "rules_name": s, "rules_fingerprint": s, "integrity_checks": num,
             "predicted": arr(json!({ "type": "object", "properties": { "axis": s, "stop_position": num, "distance": num } })) } },
         "RulesRequest": { "type": "object", "required": ["toml"], "properties": { "toml": s } },
         "GroupView": { "type": "object", "properties": {

@@ -388,13 +388,19 @@ impl Master {
 
     /// Waits for a boot-up message of `node` received after this call.
     pub fn wait_boot(&self, node: u8, timeout: Duration) -> Result<(), MasterError> {
+        let before = self.boot_count(node);
+        self.wait_boots(node, before + 1, timeout)
+    }
+
+    /// Waits until `node` has sent at least `count` boot-up messages since this master
+    /// started ([`Self::boot_count`]); returns at once if it has.
+    pub fn wait_boots(&self, node: u8, count: u64, timeout: Duration) -> Result<(), MasterError> {
         let boots = |t: &NodeTable| t.get(node).map_or(0, |e| e.boots);
         let guard = lock(&self.inner.nodes);
-        let before = boots(&guard);
         let (_g, res) = self
             .inner
             .nodes_changed
-            .wait_timeout_while(guard, timeout, |t| boots(t) == before)
+            .wait_timeout_while(guard, timeout, |t| boots(t) < count)
             .unwrap_or_else(|p| p.into_inner());
         if res.timed_out() {
             return Err(MasterError::NodeTimeout { node, what: "boot-up".into(), timeout });

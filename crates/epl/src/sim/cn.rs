@@ -277,24 +277,20 @@ impl Cn {
     }
 }
 
-/// Serves several CNs from one thread, polling their links without sleeping.
-pub(crate) fn run_spinning(mut cns: Vec<Cn>, stop: &AtomicBool) {
+/// Serves several CNs (their links and [`Cn::into_handler`]s) from one thread, polling the
+/// links without sleeping.
+pub(crate) fn run_spinning(mut cns: Vec<(Arc<dyn EthLink>, FrameHandler)>, stop: &AtomicBool) {
     let mut buf = vec![0u8; MAX_FRAME];
-    for cn in &mut cns {
-        cn.set_state(NmtState::NotActive);
-    }
     while !stop.load(Ordering::Relaxed) {
         let mut idle = true;
-        for cn in &mut cns {
-            match cn.link.recv(&mut buf, Duration::ZERO) {
+        for (link, handler) in &mut cns {
+            match link.recv(&mut buf, Duration::ZERO) {
                 Ok(Some((n, at))) => {
                     idle = false;
-                    if let Ok(frame) = EplFrame::decode(buf.get(..n).unwrap_or(&[])) {
-                        cn.handle_at(&frame, at);
-                    }
+                    handler(buf.get(..n).unwrap_or(&[]), at);
                 }
                 Ok(None) => {}
-                Err(e) => tracing::warn!(node = cn.node, "recv: {e}"),
+                Err(e) => tracing::warn!(link = %link.describe(), "recv: {e}"),
             }
         }
         if idle {

@@ -148,10 +148,10 @@ impl SegmentBuilder {
         for (node, link, params) in self.drives {
             let shared = Arc::new(cn::CnShared { state: AtomicU8::new(NmtState::NotActive.raw()) });
             let cn = cn::Cn::new(node, link, params, Arc::clone(&shared));
+            let link = cn.link();
             if self.spin_cns {
-                spinning.push(cn);
+                spinning.push((link, cn.into_handler()));
             } else {
-                let link = cn.link();
                 match link.attach_receiver(cn.into_handler()) {
                     Ok(()) => attached.push(link),
                     Err(handler) => threads.push(crate::transport::serve_on_thread(

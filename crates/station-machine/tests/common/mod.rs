@@ -191,6 +191,19 @@ pub fn safety(c: &Client) -> Value {
     c.ok("GET", "/api/safety", Value::Null)
 }
 
+/// Polls `GET /api/safety` until `done` holds.
+pub fn wait_safety(c: &Client, timeout: Duration, what: &str, done: impl Fn(&Value) -> bool) -> Value {
+    let t0 = Instant::now();
+    loop {
+        let s = safety(c);
+        if done(&s) {
+            return s;
+        }
+        assert!(t0.elapsed() < timeout, "not {what} within {timeout:?}: {s}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
 /// Waits for SafeToRun, resetting (as an operator) when the juggler is held: on a loaded
 /// non-real-time host a late cycle lets the 9 ms lease expire now and then.
 pub fn wait_safe(c: &Client, timeout: Duration) -> Value {
