@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use std::ops::ControlFlow;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard, PoisonError, TryLockError};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError, TryLockError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -59,6 +59,8 @@ pub struct SupervisorSnapshot {
     pub frames: u64,
     /// Integrity check results the supervisor applied (grows while the files are watched).
     pub integrity_checks: u64,
+    /// Operator resets the supervisor applied.
+    pub resets: u64,
     /// Times the drives were stopped.
     pub stops: u64,
     /// SafeToRun became true this many times.
@@ -79,6 +81,7 @@ impl Default for SupervisorSnapshot {
             samples: Vec::new(),
             frames: 0,
             integrity_checks: 0,
+            resets: 0,
             stops: 0,
             safe_events: 0,
             unsafe_events: 0,
@@ -107,6 +110,8 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 /// The supervisor, the monitor and their shared state.
 pub struct JugglerHandle {
     snapshot: Arc<Mutex<SupervisorSnapshot>>,
+    /// Notified after each publication of `snapshot`.
+    published: Arc<Condvar>,
     ops: Mutex<MailboxSender<Command>>,
     views: Views,
     stop: Arc<AtomicBool>,
@@ -134,6 +139,21 @@ impl JugglerHandle {
     /// Operator reset after a stop (manual restart).
     pub fn reset(&self) {
         let _ = lock(&self.ops).send(Command::Reset);
+    }
+
+    /// [`JugglerHandle::reset`], then waits up to `timeout` until the supervisor has applied
+    /// it and published its next decision; false on time-out. For a caller that must not
+    /// show the hold released before the supervisor has decided (the station's E-stop reset:
+    /// in between, the supervisor's stale hold would read as a trip).
+    pub fn reset_and_wait(&self, timeout: Duration) -> bool {
+        let target = lock(&self.snapshot).resets + 1;
+        self.reset();
+        let guard = lock(&self.snapshot);
+        let (_guard, r) = self
+            .published
+            .wait_timeout_while(guard, timeout, |s| s.resets < target || s.safe_to_run.is_none())
+            .unwrap_or_else(PoisonError::into_inner);
+        !r.timed_out()
     }
 
     /// The latest PRes of every drive seen by the monitor: `f(node, position, speed,
@@ -327,6 +347,7 @@ pub(crate) fn start(
         integrity_disabled,
         ..SupervisorSnapshot::default()
     }));
+    let published = Arc::new(Condvar::new());
     let (tx, rx) = mailbox();
     let stop = Arc::new(AtomicBool::new(false));
     let views: Views = Arc::new(Mutex::new(BTreeMap::new()));
@@ -343,10 +364,10 @@ pub(crate) fn start(
         );
     }
     {
-        let (snap, stop) = (Arc::clone(&snapshot), Arc::clone(&stop));
+        let (snap, stop, published) = (Arc::clone(&snapshot), Arc::clone(&stop), Arc::clone(&published));
         let t = std::thread::Builder::new()
             .name("juggler-supervisor".into())
-            .spawn(move || supervise(online, &*link, &rx, &snap, &stop))
+            .spawn(move || supervise(online, &*link, &rx, &snap, &published, &stop))
             .map_err(|e| err(e.to_string()))?;
         threads.push(t);
     }
@@ -377,7 +398,15 @@ pub(crate) fn start(
             .map_err(|e| err(e.to_string()))?;
         threads.push(t);
     }
-    Ok(JugglerHandle { snapshot, ops: Mutex::new(tx), views, stop, threads: Mutex::new(threads), program })
+    Ok(JugglerHandle {
+        snapshot,
+        published,
+        ops: Mutex::new(tx),
+        views,
+        stop,
+        threads: Mutex::new(threads),
+        program,
+    })
 }
 
 /// The supervisor thread: the one supervisor loop ([`OnlineSupervisor::run`]), publishing
@@ -387,6 +416,7 @@ fn supervise(
     link: &dyn motus_epl::EthLink,
     commands: &MailboxReceiver<Command>,
     snapshot: &Mutex<SupervisorSnapshot>,
+    published: &Condvar,
     stop: &AtomicBool,
 ) {
     let mut last_publish = Instant::now();
@@ -408,7 +438,8 @@ fn supervise(
                 names = sup.supervisor().rules().axes().iter().map(|a| a.name.clone()).collect();
                 mine.diagnosis = Some("new safety rules installed: the drives are held until reset".into());
             }
-            ServeEvent::Integrity(_) | ServeEvent::Reset | ServeEvent::Stopped => {}
+            ServeEvent::Reset => mine.resets += 1,
+            ServeEvent::Integrity(_) | ServeEvent::Stopped => {}
             ServeEvent::Pass => {
                 if dirty || last_publish.elapsed() >= Duration::from_millis(10) {
                     mine.safe_to_run = sup.safe_to_run();
@@ -420,7 +451,7 @@ fn supervise(
                     mine.reaches =
                         names.iter().cloned().zip(sup.supervisor().reaches().iter().copied()).collect();
                     mine.samples = names.iter().cloned().zip(sup.samples().iter().copied()).collect();
-                    let published = match snapshot.try_lock() {
+                    let done = match snapshot.try_lock() {
                         Ok(mut s) => {
                             s.clone_from(&mine);
                             true
@@ -431,10 +462,12 @@ fn supervise(
                         }
                         Err(TryLockError::WouldBlock) => false,
                     };
-                    if published {
+                    if done {
                         last_publish = Instant::now();
+                        // Never waits: a waiter re-checks under the lock.
+                        published.notify_all();
                     }
-                    dirty = !published;
+                    dirty = !done;
                 }
                 return ControlFlow::Continue(());
             }

@@ -159,6 +159,14 @@ fn demo_cell_runs_every_family_and_survives_a_killed_simulator() {
         Err(AxisError::Refused { reason, .. }) => assert!(reason.contains("read-only"), "{reason}"),
         other => panic!("a juggler move must be refused: {other:?}"),
     }
+    // An operator stop, then a reset that waits for the supervisor: on return the reset is
+    // applied and the supervisor has decided again (safe: the juggler was).
+    juggler.stop_all();
+    let resets = juggler.snapshot().resets;
+    assert!(juggler.reset_and_wait(Duration::from_secs(5)), "{:?}", juggler.snapshot());
+    let s = juggler.snapshot();
+    assert_eq!(s.resets, resets + 1, "{s:?}");
+    assert!(!s.held && s.safe_to_run == Some(true), "{s:?}");
     eprintln!("juggler checked after {:?}", t_start.elapsed());
 
     // One axis of each family: home (where it homes), move, read back.

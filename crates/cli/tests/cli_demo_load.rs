@@ -8,11 +8,11 @@
 //! right after and 5 s after the logins, the request counts, each station thread's scheduling
 //! and the juggler's supervisor trips.
 //!
-//! Juggler trips are a real-time figure, printed and not asserted: the juggler's segment runs
-//! a 1 ms cycle with a 9 ms lease, and a client load that saturates both cores of the test
-//! host (the clients run here too) can delay a cycle past it now and then (0-4 a minute with
-//! `auto`, 4-13 with `nice` were measured, docs/decisions.md); a host that keeps a core for the
-//! machine, or real-time priority with a kernel that bounds it, is what the juggler needs.
+//! No juggler trip is asserted under the default policy (`nice`): the juggler's segment runs
+//! a 1 ms cycle with a 9 ms lease beside a client load that saturates both cores of the test
+//! host (the clients run here too), and nothing in its chain waits for web work
+//! (docs/decisions.md). With another `MOTUS_LOAD_REALTIME` (a measurement) the trips are only
+//! printed: under `auto` a lease expiry was still seen in one run of two.
 //!
 //! The station runs with its default policy, `--realtime nice` (web threads at nice +10);
 //! the test needs no privilege. The clients run on one thread (a current-thread runtime).
@@ -213,7 +213,7 @@ fn two_hundred_clients_and_a_login_burst_do_not_starve_the_machine() {
     println!("station: {realtime_line}");
 
     let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
-    let report = rt.block_on(run(format!("http://{addr}"), password, pid, seconds));
+    let report = rt.block_on(run(format!("http://{addr}"), password, pid, seconds, realtime == "nice"));
 
     println!("station threads (name: scheduling x count):");
     for (name, s) in thread_scheduling(pid) {
@@ -235,6 +235,8 @@ struct Report {
     heartbeat_loss: Vec<String>,
     kv01_latch: Vec<String>,
     juggler_trips: Vec<String>,
+    /// The station ran with the default policy (`nice`): trips are asserted.
+    default_policy: bool,
     estop_failures: Vec<String>,
     estops: usize,
     rss_growth_kb: i64,
@@ -260,11 +262,19 @@ impl Report {
             "KV-01 arm faults (time-out latch) under load: {:?}",
             self.kv01_latch
         );
-        println!(
-            "juggler supervisor trips (a real-time figure, not asserted): {} {:?}",
-            self.juggler_trips.len(),
-            self.juggler_trips
-        );
+        if self.default_policy {
+            assert!(
+                self.juggler_trips.is_empty(),
+                "juggler supervisor trips under load: {:?}",
+                self.juggler_trips
+            );
+        } else {
+            println!(
+                "juggler supervisor trips (not the default policy: printed, not asserted): {} {:?}",
+                self.juggler_trips.len(),
+                self.juggler_trips
+            );
+        }
         // The memory the burst took and kept (5 s after it: the hashing buffers and the
         // blocking threads' heaps are given back by then).
         assert!(
@@ -275,7 +285,7 @@ impl Report {
     }
 }
 
-async fn run(base: String, password: String, pid: u32, seconds: u64) -> Report {
+async fn run(base: String, password: String, pid: u32, seconds: u64, default_policy: bool) -> Report {
     let http_clients = env_or("MOTUS_LOAD_HTTP", HTTP_CLIENTS);
     let ws_clients = env_or("MOTUS_LOAD_WS", WS_CLIENTS);
     let c = client();
@@ -590,6 +600,7 @@ async fn run(base: String, password: String, pid: u32, seconds: u64) -> Report {
         heartbeat_loss,
         kv01_latch,
         juggler_trips,
+        default_policy,
         estop_failures,
         estops: estop_lat.len(),
         rss_growth_kb: rss_later - rss_before,

@@ -19,6 +19,10 @@ use motus_station::config::StudentLimits;
 use crate::jog::{JogDecision, JogSpec};
 use crate::{lock, StationMachine};
 
+/// How long an E-stop reset waits for the juggler's supervisor to apply it and decide (it
+/// passes every cycle, 1 ms in the demo); the E-stop shows held meanwhile.
+const SUPERVISOR_RESET_WAIT: std::time::Duration = std::time::Duration::from_millis(250);
+
 fn failed(e: impl std::fmt::Display) -> BackendError {
     BackendError::Failed(e.to_string())
 }
@@ -402,21 +406,38 @@ impl MachineBackend for StationMachine {
     }
 
     fn reset(&self, caller: &Caller) -> Result<(), BackendError> {
-        {
+        let releasing = &self.shared.estop_releasing;
+        let was_estop = {
             // Decided and cleared together: a press in between is not lost.
             let mut owners = lock(&self.shared.estop_owners);
-            if self.shared.estop.load(Ordering::SeqCst) {
+            let was_estop = self.shared.estop.load(Ordering::SeqCst);
+            if was_estop {
                 if let Err(why) = owners.may_reset(caller.role) {
                     tracing::warn!(user = %caller.user, "reset refused: {why}");
                     return Err(BackendError::Forbidden(why));
                 }
+                // Until the supervisor has decided, the juggler's hold is the E-stop's, not
+                // a trip (see `safety`).
+                releasing.fetch_add(1, Ordering::SeqCst);
             }
             tracing::info!(user = %caller.user, "reset");
             owners.clear();
             self.shared.estop.store(false, Ordering::SeqCst);
-        }
+            was_estop
+        };
         if let Some(j) = self.shared.juggler.as_ref() {
-            j.reset();
+            if was_estop {
+                if !j.reset_and_wait(SUPERVISOR_RESET_WAIT) {
+                    tracing::warn!(
+                        "reset: the juggler's supervisor did not decide within {SUPERVISOR_RESET_WAIT:?}"
+                    );
+                }
+            } else {
+                j.reset();
+            }
+        }
+        if was_estop {
+            releasing.fetch_sub(1, Ordering::SeqCst);
         }
         for a in &self.shared.axes {
             let _ = lock(&a.axis).execute(&AxisCommand::FaultReset);
@@ -427,13 +448,22 @@ impl MachineBackend for StationMachine {
     }
 
     fn safety(&self) -> SafetyView {
-        let estop = self.shared.estop.load(Ordering::Relaxed);
+        let pressed = self.shared.estop.load(Ordering::SeqCst);
+        let releasing = self.shared.estop_releasing.load(Ordering::SeqCst) > 0;
+        let estop = pressed || releasing;
+        let estop_diagnosis = || {
+            if pressed {
+                lock(&self.shared.estop_owners).diagnosis()
+            } else {
+                "emergency stop reset: waiting for the safety supervisor's decision".to_owned()
+            }
+        };
         let Some(j) = self.shared.juggler.as_ref() else {
             return SafetyView {
                 safe_to_run: !estop,
                 held: estop,
                 estop,
-                diagnosis: estop.then(|| lock(&self.shared.estop_owners).diagnosis()),
+                diagnosis: estop.then(estop_diagnosis),
                 rules_name: "none".into(),
                 rules_fingerprint: String::new(),
                 predicted: Vec::new(),
@@ -464,7 +494,7 @@ impl MachineBackend for StationMachine {
             safe_to_run: s.safe_to_run == Some(true) && !s.held && !estop,
             held: s.held || estop,
             estop,
-            diagnosis: if estop { Some(lock(&self.shared.estop_owners).diagnosis()) } else { diagnosis },
+            diagnosis: if estop { Some(estop_diagnosis()) } else { diagnosis },
             rules_name: self
                 .shared
                 .config

@@ -194,6 +194,9 @@ pub(crate) struct Shared {
     /// The omni group's pose estimate (wheel odometry), if the cell has one.
     pub(crate) robot: Option<Mutex<robot::RobotEstimate>>,
     pub(crate) estop: AtomicBool,
+    /// E-stop resets in progress whose release the juggler's supervisor has not yet decided
+    /// (shown as the E-stop still held, see `Backend::reset`).
+    pub(crate) estop_releasing: std::sync::atomic::AtomicUsize,
     /// Who pressed the E-stop since the last reset.
     pub(crate) estop_owners: Mutex<stops::EStopOwners>,
     /// Jog leases (the dead-man; [`jog`]).
@@ -312,6 +315,7 @@ impl StationMachine {
             robot_path: Mutex::new(VecDeque::new()),
             robot,
             estop: AtomicBool::new(false),
+            estop_releasing: std::sync::atomic::AtomicUsize::new(0),
             estop_owners: Mutex::new(stops::EStopOwners::default()),
             jogs: Mutex::new(jog::JogLeases::default()),
             faults: Arc::clone(&faults),
