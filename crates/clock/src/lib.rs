@@ -23,14 +23,23 @@
 //! in microseconds); when it does not arrive, the waiter jumps the virtual clock to its
 //! deadline with [`Clock::sleep_until`] and reports the time-out on virtual time.
 //!
+//! A runtime that runs its own cyclic thread (a serial scheduler, a controller) shares a
+//! [`VirtualClock::threaded`] clock with the test thread: the runtime starts its thread
+//! with [`spawn`], every taking part thread sleeps on the clock, and time jumps to the
+//! earliest deadline once all of them wait, as a discrete-event simulator does. A thread
+//! that waits for another one (a reply over a channel) marks itself [`while_blocked`].
+//!
 //! A peer that runs its own thread with its own real-time loop (a simulator served over
 //! TCP, a pty, a veth pair) cannot share a virtual clock: such tests run on
 //! [`SystemClock`] with generous liveness time-outs.
 
 #![forbid(unsafe_code)]
 
+use std::cell::RefCell;
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
+use std::thread::ThreadId;
 use std::time::{Duration, Instant};
 
 /// A source of time and a way to wait for it.
@@ -52,6 +61,26 @@ pub trait Clock: Send + Sync + std::fmt::Debug {
     /// The time elapsed since `earlier` (zero if `earlier` is later than now).
     fn elapsed(&self, earlier: Instant) -> Duration {
         self.now().saturating_duration_since(earlier)
+    }
+
+    /// The calling thread takes part in this clock's time (a threaded [`VirtualClock`]
+    /// moves time only when every taking part thread waits). A runtime calls it first thing
+    /// on each thread it starts. Nothing for the system clock.
+    fn join_thread(&self) {}
+
+    /// The calling thread stops taking part (it also stops when it ends).
+    fn leave_thread(&self) {}
+
+    /// A thread that will take part is being started (`true`), or has joined or failed to
+    /// start (`false`): a threaded virtual clock does not move meanwhile. See [`spawn`].
+    fn starting_thread(&self, starting: bool) {
+        let _ = starting;
+    }
+
+    /// Marks the calling thread blocked on another thread (`true`) or running again
+    /// (`false`); see [`while_blocked`].
+    fn blocked(&self, blocked: bool) {
+        let _ = blocked;
     }
 }
 
@@ -82,11 +111,116 @@ impl Clock for SystemClock {
 /// A deterministic clock: time starts at a base instant and moves only when advanced
 /// ([`VirtualClock::advance`], [`Clock::sleep`], [`Clock::sleep_until`]). Clones share the
 /// same time.
+///
+/// ## One thread of control, or several
+/// A clock made with [`VirtualClock::new`] serves **one thread of control**: a sleep moves
+/// time forward at once. A clock made with [`VirtualClock::threaded`] serves **several
+/// threads** (a driver's cyclic thread and the test thread that commands it), as a
+/// discrete-event simulator does: every thread that takes part ([`Clock::join_thread`], or
+/// its first sleep) waits for its deadline, and time jumps to the earliest deadline only
+/// when *every* taking part thread is asleep or [blocked](Clock::blocked) on another. A
+/// thread stops taking part when it ends (or calls [`Clock::leave_thread`]). Two threads
+/// woken at the same instant run in an order the OS chooses, so results are reproducible to
+/// within what happens at one instant.
 #[derive(Debug, Clone)]
 pub struct VirtualClock {
+    inner: Arc<Shared>,
+}
+
+#[derive(Debug)]
+struct Shared {
     base: Instant,
+    /// One id per clock, for the thread-local registry of taking part threads.
+    id: u64,
+    threaded: bool,
+    state: Mutex<State>,
+    woken: Condvar,
+}
+
+#[derive(Debug, Default)]
+struct State {
     /// Nanoseconds since `base`.
-    offset_ns: Arc<AtomicU64>,
+    now_ns: u64,
+    /// Taking part threads and what each waits for: `None` while it runs, `Some(deadline)`
+    /// while it sleeps (`u64::MAX` while blocked on another thread).
+    threads: HashMap<ThreadId, Option<u64>>,
+    /// Threads being started that will take part ([`spawn`]): time waits for them.
+    starting: usize,
+}
+
+impl State {
+    /// Jumps to the earliest deadline when every taking part thread waits; true if time moved.
+    fn advance_if_all_wait(&mut self) -> bool {
+        if self.starting > 0 {
+            return false;
+        }
+        let mut earliest = u64::MAX;
+        for wait in self.threads.values() {
+            match wait {
+                None => return false,
+                Some(d) => earliest = earliest.min(*d),
+            }
+        }
+        if earliest == u64::MAX || earliest <= self.now_ns {
+            return false;
+        }
+        self.now_ns = earliest;
+        true
+    }
+}
+
+static NEXT_CLOCK_ID: AtomicU64 = AtomicU64::new(1);
+
+thread_local! {
+    /// The threaded clocks this thread takes part in; leaving them when the thread ends.
+    static TAKING_PART: RefCell<Vec<Membership>> = const { RefCell::new(Vec::new()) };
+}
+
+/// A thread's membership of a threaded clock, ended when the thread ends.
+struct Membership(Arc<Shared>);
+
+impl Drop for Membership {
+    fn drop(&mut self) {
+        self.0.remove(std::thread::current().id());
+    }
+}
+
+impl Shared {
+    fn lock(&self) -> MutexGuard<'_, State> {
+        self.state.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn is_member(&self) -> bool {
+        TAKING_PART.with(|m| m.borrow().iter().any(|s| s.0.id == self.id))
+    }
+
+    fn join(self: &Arc<Self>) {
+        if !self.threaded || self.is_member() {
+            return;
+        }
+        let mut state = self.lock();
+        state.threads.insert(std::thread::current().id(), None);
+        drop(state);
+        TAKING_PART.with(|m| m.borrow_mut().push(Membership(Arc::clone(self))));
+    }
+
+    fn remove(&self, thread: ThreadId) {
+        let mut state = self.lock();
+        state.threads.remove(&thread);
+        if state.advance_if_all_wait() {
+            self.woken.notify_all();
+        }
+    }
+
+    /// Sets what the calling (taking part) thread waits for and moves time if all wait.
+    fn set_wait(&self, state: &mut State, wait: Option<u64>) {
+        if let Some(w) = state.threads.get_mut(&std::thread::current().id()) {
+            *w = wait;
+        }
+        if state.advance_if_all_wait() {
+            self.woken.notify_all();
+        }
+    }
 }
 
 impl Default for VirtualClock {
@@ -96,9 +230,30 @@ impl Default for VirtualClock {
 }
 
 impl VirtualClock {
-    /// A clock at its base instant (taken now; it does not move by itself).
+    /// A clock for one thread of control, at its base instant (taken now): a sleep moves
+    /// time forward at once.
     pub fn new() -> Self {
-        Self { base: Instant::now(), offset_ns: Arc::new(AtomicU64::new(0)) }
+        Self::make(false)
+    }
+
+    /// A clock for several threads (see the type's documentation); the calling thread takes
+    /// part.
+    pub fn threaded() -> Self {
+        let clock = Self::make(true);
+        clock.inner.join();
+        clock
+    }
+
+    fn make(threaded: bool) -> Self {
+        Self {
+            inner: Arc::new(Shared {
+                base: Instant::now(),
+                id: NEXT_CLOCK_ID.fetch_add(1, Ordering::Relaxed),
+                threaded,
+                state: Mutex::new(State::default()),
+                woken: Condvar::new(),
+            }),
+        }
     }
 
     /// This clock as a [`SharedClock`] (sharing its time).
@@ -108,32 +263,138 @@ impl VirtualClock {
 
     /// The base instant (time zero of this clock).
     pub fn base(&self) -> Instant {
-        self.base
+        self.inner.base
     }
 
     /// Virtual time elapsed since the base instant.
     pub fn since_base(&self) -> Duration {
-        Duration::from_nanos(self.offset_ns.load(Ordering::Acquire))
+        Duration::from_nanos(self.inner.lock().now_ns)
     }
 
-    /// Moves time forward by `by`.
+    /// Moves time forward by `by` (wakes the threads whose deadline it passes).
     pub fn advance(&self, by: Duration) {
         let ns = u64::try_from(by.as_nanos()).unwrap_or(u64::MAX);
+        let mut state = self.inner.lock();
         // Saturating add (an overflow would need 584 years of virtual time).
-        let _ = self
-            .offset_ns
-            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |cur| Some(cur.saturating_add(ns)));
+        state.now_ns = state.now_ns.saturating_add(ns);
+        drop(state);
+        self.inner.woken.notify_all();
+    }
+
+    fn deadline_ns(&self, deadline: Instant) -> u64 {
+        u64::try_from(deadline.saturating_duration_since(self.inner.base).as_nanos()).unwrap_or(u64::MAX)
     }
 }
 
+/// How long a thread of a threaded clock waits, in wall time, before it checks again that
+/// time can move (a liveness bound, never a figure).
+const WAKE_CHECK: Duration = Duration::from_millis(50);
+
 impl Clock for VirtualClock {
     fn now(&self) -> Instant {
-        self.base + self.since_base()
+        self.inner.base + self.since_base()
     }
 
     fn sleep(&self, duration: Duration) {
-        self.advance(duration);
+        if !self.inner.threaded {
+            self.advance(duration);
+            return;
+        }
+        let deadline = self.now() + duration;
+        self.sleep_until(deadline);
     }
+
+    fn sleep_until(&self, deadline: Instant) {
+        let target = self.deadline_ns(deadline);
+        if !self.inner.threaded {
+            let mut state = self.inner.lock();
+            state.now_ns = state.now_ns.max(target);
+            return;
+        }
+        self.inner.join();
+        let mut state = self.inner.lock();
+        if state.now_ns >= target {
+            return;
+        }
+        self.inner.set_wait(&mut state, Some(target));
+        while state.now_ns < target {
+            state = match self.inner.woken.wait_timeout(state, WAKE_CHECK) {
+                Ok((s, _)) => s,
+                Err(poisoned) => poisoned.into_inner().0,
+            };
+        }
+        self.inner.set_wait(&mut state, None);
+    }
+
+    fn join_thread(&self) {
+        self.inner.join();
+    }
+
+    fn leave_thread(&self) {
+        let id = self.inner.id;
+        // Dropping the membership removes the thread and lets time move.
+        let left = TAKING_PART.with(|m| {
+            let mut m = m.borrow_mut();
+            m.iter().position(|s| s.0.id == id).map(|i| m.remove(i))
+        });
+        drop(left);
+    }
+
+    fn starting_thread(&self, starting: bool) {
+        if !self.inner.threaded {
+            return;
+        }
+        let mut state = self.inner.lock();
+        if starting {
+            state.starting += 1;
+        } else {
+            state.starting = state.starting.saturating_sub(1);
+            if state.advance_if_all_wait() {
+                self.inner.woken.notify_all();
+            }
+        }
+    }
+
+    fn blocked(&self, blocked: bool) {
+        if !self.inner.threaded || !self.inner.is_member() {
+            return;
+        }
+        let mut state = self.inner.lock();
+        self.inner.set_wait(&mut state, blocked.then_some(u64::MAX));
+    }
+}
+
+/// Starts a thread that takes part in `clock`'s time from its first instruction (a
+/// threaded virtual clock does not move between the spawn and the thread's start).
+///
+/// # Errors
+/// The thread could not be spawned.
+pub fn spawn<T, F>(clock: &SharedClock, builder: std::thread::Builder, f: F) -> std::io::Result<std::thread::JoinHandle<T>>
+where
+    F: FnOnce() -> T + Send + 'static,
+    T: Send + 'static,
+{
+    clock.starting_thread(true);
+    let thread_clock = Arc::clone(clock);
+    let spawned = builder.spawn(move || {
+        thread_clock.join_thread();
+        thread_clock.starting_thread(false);
+        f()
+    });
+    if spawned.is_err() {
+        clock.starting_thread(false);
+    }
+    spawned
+}
+
+/// Runs `wait` (a wait for another thread: a channel, a lock held across a cycle) with the
+/// calling thread marked blocked on `clock`, so that a threaded virtual clock can move
+/// time for the thread it waits for.
+pub fn while_blocked<T>(clock: &dyn Clock, wait: impl FnOnce() -> T) -> T {
+    clock.blocked(true);
+    let result = wait();
+    clock.blocked(false);
+    result
 }
 
 #[cfg(test)]
@@ -156,6 +417,42 @@ mod tests {
         let shared = c.shared();
         shared.sleep(Duration::from_millis(5));
         assert_eq!(c.since_base(), Duration::from_millis(31_005), "clones share the time");
+    }
+
+    #[test]
+    fn threaded_time_moves_when_every_thread_waits() {
+        let c = VirtualClock::threaded();
+        let t0 = c.now();
+        let shared = c.shared();
+        let worker = {
+            let c = c.clone();
+            spawn(&shared, std::thread::Builder::new(), move || {
+                let mut wakes = Vec::new();
+                for _ in 0..5 {
+                    c.sleep(Duration::from_millis(10));
+                    wakes.push(c.since_base());
+                }
+                wakes
+            })
+            .unwrap()
+        };
+        // The test thread sleeps 25 ms while the worker wakes every 10 ms.
+        c.sleep(Duration::from_millis(25));
+        assert_eq!(c.elapsed(t0), Duration::from_millis(25));
+        let wakes = while_blocked(&c, || worker.join().unwrap_or_default());
+        let ms: Vec<u128> = wakes.iter().map(Duration::as_millis).collect();
+        assert_eq!(ms, vec![10, 20, 30, 40, 50]);
+        assert_eq!(c.since_base(), Duration::from_millis(50), "the worker's last sleep");
+    }
+
+    #[test]
+    fn a_thread_that_ends_stops_holding_time_back() {
+        let c = VirtualClock::threaded();
+        let other = c.clone();
+        // Takes part, then ends without sleeping.
+        std::thread::spawn(move || other.join_thread()).join().ok();
+        c.sleep(Duration::from_secs(1));
+        assert_eq!(c.since_base(), Duration::from_secs(1));
     }
 
     #[test]
