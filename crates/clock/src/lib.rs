@@ -420,7 +420,7 @@ mod tests {
     }
 
     #[test]
-    fn threaded_time_moves_when_every_thread_waits() {
+    fn threaded_time_moves_when_every_thread_waits() -> std::io::Result<()> {
         let c = VirtualClock::threaded();
         let t0 = c.now();
         let shared = c.shared();
@@ -433,8 +433,7 @@ mod tests {
                     wakes.push(c.since_base());
                 }
                 wakes
-            })
-            .unwrap()
+            })?
         };
         // The test thread sleeps 25 ms while the worker wakes every 10 ms.
         c.sleep(Duration::from_millis(25));
@@ -443,6 +442,7 @@ mod tests {
         let ms: Vec<u128> = wakes.iter().map(Duration::as_millis).collect();
         assert_eq!(ms, vec![10, 20, 30, 40, 50]);
         assert_eq!(c.since_base(), Duration::from_millis(50), "the worker's last sleep");
+        Ok(())
     }
 
     #[test]
