@@ -11,4 +11,14 @@ bash scripts/install-oracles.sh
 # the same host: it uses the release binary (a debug build of the whole cell loads a 2-core
 # machine enough for the juggler's supervisor to see late cycles).
 cargo build --release --locked -p motus
-cargo test --workspace --locked --no-fail-fast "$@"
+# cargo-nextest runs each test in its own process, several at a time, with the groups and
+# time-outs of .config/nextest.toml; it is on this project's machines, and installed here
+# otherwise. Doc tests are run by cargo test (nextest does not run them).
+if ! cargo nextest --version >/dev/null 2>&1; then
+  echo "installing cargo-nextest"
+  cargo install cargo-nextest --locked
+fi
+status=0
+cargo nextest run --workspace --locked --no-fail-fast "$@" || status=$?
+cargo test --workspace --locked --doc || status=$?
+exit "$status"
