@@ -27,7 +27,10 @@
 //! [`VirtualClock::threaded`] clock with the test thread: the runtime starts its thread
 //! with [`spawn`], every taking part thread sleeps on the clock, and time jumps to the
 //! earliest deadline once all of them wait, as a discrete-event simulator does. A thread
-//! that waits for another one (a reply over a channel) marks itself [`while_blocked`].
+//! that waits for another one (a reply over a channel) marks itself [`while_blocked`]; one
+//! that waits for another one's message *with a deadline* (a receiver on an in-process link)
+//! parks on the clock ([`Clock::park_until`]) and the sender wakes it ([`Clock::unpark`]) at
+//! the instant it sends.
 //!
 //! A peer that runs its own thread with its own real-time loop (a simulator served over
 //! TCP, a pty, a veth pair) cannot share a virtual clock: such tests run on
@@ -36,7 +39,7 @@
 #![forbid(unsafe_code)]
 
 use std::cell::RefCell;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::thread::ThreadId;
@@ -77,11 +80,57 @@ pub trait Clock: Send + Sync + std::fmt::Debug {
         let _ = starting;
     }
 
+    /// How many times the lock `key` has been released (see [`ClockMutex`]).
+    fn releases(&self, key: u64) -> u64 {
+        let _ = key;
+        0
+    }
+
+    /// Waits until the lock `key` has been released more than `seen` times, the calling
+    /// thread counting as blocked meanwhile (see [`ClockMutex`]). The system clock yields.
+    fn wait_for_release(&self, key: u64, seen: u64) {
+        let _ = (key, seen);
+        std::thread::yield_now();
+    }
+
+    /// The lock `key` was released: the threads waiting for it run again *before* time can
+    /// move (see [`ClockMutex`]).
+    fn released(&self, key: u64) {
+        let _ = key;
+    }
+
     /// Marks the calling thread blocked on another thread (`true`) or running again
     /// (`false`); see [`while_blocked`].
     fn blocked(&self, blocked: bool) {
         let _ = blocked;
     }
+
+    /// Waits until `deadline`, or until another thread calls [`Clock::unpark`] for the
+    /// calling one, whichever comes first: a wait with a deadline for something another
+    /// thread produces (a frame on an in-process link). An `unpark` that comes before the
+    /// wait ends the next wait at once, as with [`std::thread::park_timeout`] and
+    /// [`std::thread::Thread::unpark`]; a wait may also end early for no reason, so callers
+    /// check again what they wait for. On a threaded [`VirtualClock`] the waiting thread
+    /// counts as asleep until `deadline`, and an `unpark` marks it running at once: time does
+    /// not move on before it has looked at what it was woken for.
+    fn park_until(&self, deadline: Instant) {
+        let left = deadline.saturating_duration_since(self.now());
+        if !left.is_zero() {
+            std::thread::park_timeout(left);
+        }
+    }
+
+    /// Ends `thread`'s [`Clock::park_until`], or its next one if it is not waiting.
+    fn unpark(&self, thread: &std::thread::Thread) {
+        thread.unpark();
+    }
+
+    /// Waits until every other taking part thread of a threaded [`VirtualClock`] waits (or
+    /// settles too): what they do at this instant in answer to what the calling thread did
+    /// (a frame it sent) is done before it goes on, so that the order of events within one
+    /// instant does not depend on the OS. Nothing for other clocks. Never call it while
+    /// holding a lock another taking part thread may wait for.
+    fn settle(&self) {}
 }
 
 /// A shared clock, as runtimes hold it.
@@ -146,6 +195,16 @@ struct State {
     threads: HashMap<ThreadId, Option<u64>>,
     /// Threads being started that will take part ([`spawn`]): time waits for them.
     starting: usize,
+    /// Threads inside [`Clock::park_until`].
+    parked: HashSet<ThreadId>,
+    /// Threads unparked since their last park (a token each).
+    unparked: HashSet<ThreadId>,
+    /// Threads inside [`Clock::settle`].
+    settling: HashSet<ThreadId>,
+    /// Taking part threads waiting for a [`ClockMutex`] (by its key) to be released.
+    waiting_for: HashMap<ThreadId, u64>,
+    /// Releases of each [`ClockMutex`] so far (by key).
+    releases: HashMap<u64, u64>,
 }
 
 impl State {
@@ -166,6 +225,12 @@ impl State {
         }
         self.now_ns = earliest;
         true
+    }
+
+    /// True when every taking part thread but `me` waits or settles.
+    fn others_idle(&self, me: ThreadId) -> bool {
+        self.starting == 0
+            && self.threads.iter().all(|(id, wait)| *id == me || wait.is_some() || self.settling.contains(id))
     }
 }
 
@@ -207,7 +272,8 @@ impl Shared {
     fn remove(&self, thread: ThreadId) {
         let mut state = self.lock();
         state.threads.remove(&thread);
-        if state.advance_if_all_wait() {
+        state.unparked.remove(&thread);
+        if state.advance_if_all_wait() || !state.settling.is_empty() {
             self.woken.notify_all();
         }
     }
@@ -217,7 +283,7 @@ impl Shared {
         if let Some(w) = state.threads.get_mut(&std::thread::current().id()) {
             *w = wait;
         }
-        if state.advance_if_all_wait() {
+        if state.advance_if_all_wait() || !state.settling.is_empty() {
             self.woken.notify_all();
         }
     }
@@ -355,12 +421,117 @@ impl Clock for VirtualClock {
         }
     }
 
+    fn releases(&self, key: u64) -> u64 {
+        self.inner.lock().releases.get(&key).copied().unwrap_or(0)
+    }
+
+    fn wait_for_release(&self, key: u64, seen: u64) {
+        if !self.inner.threaded || !self.inner.is_member() {
+            std::thread::yield_now();
+            return;
+        }
+        let me = std::thread::current().id();
+        let mut state = self.inner.lock();
+        if state.releases.get(&key).copied().unwrap_or(0) != seen {
+            return;
+        }
+        state.waiting_for.insert(me, key);
+        self.inner.set_wait(&mut state, Some(u64::MAX));
+        while state.releases.get(&key).copied().unwrap_or(0) == seen {
+            state = match self.inner.woken.wait_timeout(state, WAKE_CHECK) {
+                Ok((s, _)) => s,
+                Err(poisoned) => poisoned.into_inner().0,
+            };
+        }
+        // `released` marked this thread running already; make sure of it.
+        state.waiting_for.remove(&me);
+        self.inner.set_wait(&mut state, None);
+    }
+
+    fn released(&self, key: u64) {
+        if !self.inner.threaded {
+            return;
+        }
+        let mut state = self.inner.lock();
+        *state.releases.entry(key).or_insert(0) += 1;
+        let woken: Vec<ThreadId> =
+            state.waiting_for.iter().filter(|(_, k)| **k == key).map(|(t, _)| *t).collect();
+        for t in woken {
+            state.waiting_for.remove(&t);
+            if let Some(w) = state.threads.get_mut(&t) {
+                *w = None;
+            }
+        }
+        drop(state);
+        self.inner.woken.notify_all();
+    }
+
     fn blocked(&self, blocked: bool) {
         if !self.inner.threaded || !self.inner.is_member() {
             return;
         }
         let mut state = self.inner.lock();
         self.inner.set_wait(&mut state, blocked.then_some(u64::MAX));
+    }
+
+    fn park_until(&self, deadline: Instant) {
+        let target = self.deadline_ns(deadline);
+        let me = std::thread::current().id();
+        if !self.inner.threaded {
+            let mut state = self.inner.lock();
+            if !state.unparked.remove(&me) {
+                state.now_ns = state.now_ns.max(target);
+            }
+            return;
+        }
+        self.inner.join();
+        let mut state = self.inner.lock();
+        if state.unparked.remove(&me) || state.now_ns >= target {
+            return;
+        }
+        state.parked.insert(me);
+        self.inner.set_wait(&mut state, Some(target));
+        while state.now_ns < target && !state.unparked.contains(&me) {
+            state = match self.inner.woken.wait_timeout(state, WAKE_CHECK) {
+                Ok((s, _)) => s,
+                Err(poisoned) => poisoned.into_inner().0,
+            };
+        }
+        state.unparked.remove(&me);
+        state.parked.remove(&me);
+        self.inner.set_wait(&mut state, None);
+    }
+
+    fn settle(&self) {
+        if !self.inner.threaded || !self.inner.is_member() {
+            return;
+        }
+        let me = std::thread::current().id();
+        let mut state = self.inner.lock();
+        state.settling.insert(me);
+        // Another settling thread may be waiting for this one.
+        self.inner.woken.notify_all();
+        while !state.others_idle(me) {
+            state = match self.inner.woken.wait_timeout(state, WAKE_CHECK) {
+                Ok((s, _)) => s,
+                Err(poisoned) => poisoned.into_inner().0,
+            };
+        }
+        state.settling.remove(&me);
+    }
+
+    fn unpark(&self, thread: &std::thread::Thread) {
+        let id = thread.id();
+        let mut state = self.inner.lock();
+        state.unparked.insert(id);
+        if state.parked.contains(&id) {
+            // Running from now on: time waits until it has looked and waits again.
+            if let Some(wait) = state.threads.get_mut(&id) {
+                *wait = None;
+            }
+        }
+        drop(state);
+        self.inner.woken.notify_all();
     }
 }
 
@@ -369,7 +540,11 @@ impl Clock for VirtualClock {
 ///
 /// # Errors
 /// The thread could not be spawned.
-pub fn spawn<T, F>(clock: &SharedClock, builder: std::thread::Builder, f: F) -> std::io::Result<std::thread::JoinHandle<T>>
+pub fn spawn<T, F>(
+    clock: &SharedClock,
+    builder: std::thread::Builder,
+    f: F,
+) -> std::io::Result<std::thread::JoinHandle<T>>
 where
     F: FnOnce() -> T + Send + 'static,
     T: Send + 'static,
@@ -385,6 +560,88 @@ where
         clock.starting_thread(false);
     }
     spawned
+}
+
+static NEXT_LOCK_KEY: AtomicU64 = AtomicU64::new(1);
+
+/// A mutex for data that threads of a [threaded](VirtualClock::threaded) virtual clock
+/// share while they sleep on it (a bus line held across a transaction's wire time).
+///
+/// A thread waiting for the lock counts as blocked, so time can move for the holder; when
+/// the holder releases it, the waiters count as running again *at once*, before the holder's
+/// next sleep can move time past them (with a plain mutex and [`while_blocked`], a waiter
+/// stays marked blocked until the OS runs it, and time can jump meanwhile). On the system
+/// clock it is a plain mutex.
+#[derive(Debug)]
+pub struct ClockMutex<T> {
+    clock: SharedClock,
+    key: u64,
+    inner: Mutex<T>,
+}
+
+/// The guard of a [`ClockMutex`]; releasing it wakes the waiters on the clock.
+#[derive(Debug)]
+pub struct ClockMutexGuard<'a, T> {
+    guard: Option<MutexGuard<'a, T>>,
+    lock: &'a ClockMutex<T>,
+}
+
+impl<T> ClockMutex<T> {
+    /// A mutex around `value` whose waiters wait on `clock`.
+    pub fn new(value: T, clock: SharedClock) -> Self {
+        Self { clock, key: NEXT_LOCK_KEY.fetch_add(1, Ordering::Relaxed), inner: Mutex::new(value) }
+    }
+
+    /// The clock the waiters wait on.
+    pub fn clock(&self) -> &SharedClock {
+        &self.clock
+    }
+
+    /// Takes the lock (a poisoned lock is taken all the same: the data is plain state).
+    pub fn lock(&self) -> ClockMutexGuard<'_, T> {
+        loop {
+            let seen = self.clock.releases(self.key);
+            match self.inner.try_lock() {
+                Ok(guard) => return ClockMutexGuard { guard: Some(guard), lock: self },
+                Err(std::sync::TryLockError::Poisoned(p)) => {
+                    return ClockMutexGuard { guard: Some(p.into_inner()), lock: self }
+                }
+                Err(std::sync::TryLockError::WouldBlock) => self.clock.wait_for_release(self.key, seen),
+            }
+        }
+    }
+}
+
+impl<T> std::ops::Deref for ClockMutexGuard<'_, T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        // The guard is `Some` until drop.
+        match &self.guard {
+            Some(g) => g,
+            None => unreachable_guard(),
+        }
+    }
+}
+
+impl<T> std::ops::DerefMut for ClockMutexGuard<'_, T> {
+    fn deref_mut(&mut self) -> &mut T {
+        match &mut self.guard {
+            Some(g) => g,
+            None => unreachable_guard(),
+        }
+    }
+}
+
+#[allow(clippy::panic)]
+fn unreachable_guard() -> ! {
+    panic!("a ClockMutexGuard is used after its release")
+}
+
+impl<T> Drop for ClockMutexGuard<'_, T> {
+    fn drop(&mut self) {
+        drop(self.guard.take());
+        self.lock.clock.released(self.lock.key);
+    }
 }
 
 /// Runs `wait` (a wait for another thread: a channel, a lock held across a cycle) with the
@@ -442,6 +699,121 @@ mod tests {
         let ms: Vec<u128> = wakes.iter().map(Duration::as_millis).collect();
         assert_eq!(ms, vec![10, 20, 30, 40, 50]);
         assert_eq!(c.since_base(), Duration::from_millis(50), "the worker's last sleep");
+        Ok(())
+    }
+
+    #[test]
+    fn an_unpark_ends_a_park_at_the_instant_it_is_made() -> std::io::Result<()> {
+        let c = VirtualClock::threaded();
+        let shared = c.shared();
+        let worker = {
+            let c = c.clone();
+            spawn(&shared, std::thread::Builder::new(), move || {
+                // Woken at 2 ms, then nobody wakes it: it reaches its deadline.
+                c.park_until(c.base() + Duration::from_millis(10));
+                let woken = c.since_base();
+                c.park_until(c.base() + Duration::from_millis(10));
+                (woken, c.since_base())
+            })?
+        };
+        let thread = worker.thread().clone();
+        c.sleep(Duration::from_millis(2));
+        c.unpark(&thread);
+        let (woken, reached) = while_blocked(&c, || worker.join()).unwrap_or_default();
+        assert_eq!(woken, Duration::from_millis(2));
+        assert_eq!(reached, Duration::from_millis(10));
+        // One thread of control: a token ends the next park at once, else it jumps.
+        let one = VirtualClock::new();
+        one.unpark(&std::thread::current());
+        one.park_until(one.base() + Duration::from_secs(1));
+        assert_eq!(one.since_base(), Duration::ZERO);
+        one.park_until(one.base() + Duration::from_secs(1));
+        assert_eq!(one.since_base(), Duration::from_secs(1));
+        Ok(())
+    }
+
+    #[test]
+    fn settle_waits_for_what_other_threads_do_in_the_same_instant() -> std::io::Result<()> {
+        let c = VirtualClock::threaded();
+        let shared = c.shared();
+        let log = Arc::new(Mutex::new(Vec::new()));
+        let worker = {
+            let (c, log) = (c.clone(), Arc::clone(&log));
+            spawn(&shared, std::thread::Builder::new(), move || {
+                for _ in 0..3 {
+                    c.park_until(c.base() + Duration::from_secs(1));
+                    // Slow work in answer to the wake-up, in the same instant.
+                    std::thread::sleep(Duration::from_millis(5));
+                    log.lock().unwrap_or_else(PoisonError::into_inner).push(("answer", c.since_base()));
+                }
+            })?
+        };
+        let thread = worker.thread().clone();
+        for _ in 0..3 {
+            c.sleep(Duration::from_millis(1));
+            c.unpark(&thread);
+            c.settle();
+            log.lock().unwrap_or_else(PoisonError::into_inner).push(("after", c.since_base()));
+        }
+        while_blocked(&c, || worker.join()).ok();
+        let ms = Duration::from_millis;
+        let log = log.lock().unwrap_or_else(PoisonError::into_inner).clone();
+        assert_eq!(
+            log,
+            [
+                ("answer", ms(1)),
+                ("after", ms(1)),
+                ("answer", ms(2)),
+                ("after", ms(2)),
+                ("answer", ms(3)),
+                ("after", ms(3))
+            ]
+        );
+        Ok(())
+    }
+
+    #[test]
+    fn a_lock_held_across_sleeps_is_handed_over_before_time_moves() -> std::io::Result<()> {
+        // Two threads take turns on a "line": each holds it for 1 ms of virtual time per
+        // transaction, then sleeps 0.1 ms. Each of 100 transactions must find the line at
+        // the time it asked for it plus at most one other transaction (the hand-over never
+        // lets time jump past a waiter).
+        let c = VirtualClock::threaded();
+        let shared = c.shared();
+        let line = Arc::new(ClockMutex::new(0u32, c.shared()));
+        let worker = {
+            let (c, line) = (c.clone(), Arc::clone(&line));
+            spawn(&shared, std::thread::Builder::new(), move || {
+                let mut worst = Duration::ZERO;
+                for _ in 0..100 {
+                    let asked = c.now();
+                    let mut l = line.lock();
+                    worst = worst.max(c.elapsed(asked));
+                    c.sleep(Duration::from_millis(1));
+                    *l += 1;
+                    drop(l);
+                    c.sleep(Duration::from_micros(100));
+                }
+                worst
+            })?
+        };
+        let mut worst = Duration::ZERO;
+        for _ in 0..100 {
+            let asked = c.now();
+            let mut l = line.lock();
+            worst = worst.max(c.elapsed(asked));
+            c.sleep(Duration::from_millis(1));
+            *l += 1;
+            drop(l);
+            c.sleep(Duration::from_micros(100));
+        }
+        let other = while_blocked(&c, || worker.join().unwrap_or(Duration::MAX));
+        assert_eq!(*line.lock(), 200);
+        assert!(worst <= Duration::from_millis(1), "waited {worst:?}");
+        assert!(other <= Duration::from_millis(1), "the worker waited {other:?}");
+        // 200 transactions of 1 ms, one at a time.
+        assert!(c.since_base() >= Duration::from_millis(200));
+        assert!(c.since_base() <= Duration::from_millis(202), "{:?}", c.since_base());
         Ok(())
     }
 

@@ -13,7 +13,8 @@
 //! Time is injected: an [`Arm`] (or one [`Module`]) advances in fixed steps to the `now` it
 //! is given, deterministically (seeded noise), so tests step it on a virtual clock. A
 //! [`SimLine`] serves the arm on any [`motus_serial::Link`] (a pty for tests), with
-//! optional baud-rate pacing and fault injection.
+//! optional baud-rate pacing and fault injection, or in-process on a virtual clock
+//! ([`SimLine::sim_link`]: a driver and the arm in one test on virtual time).
 //!
 //! ```
 //! use motus_kv01_protocol::{Address, Answer, Command, ReplyBody, Request};
@@ -46,5 +47,5 @@ pub use config::{
 };
 pub use error::SimError;
 pub use gripper::GripperState;
-pub use line::{lock, LineError, LineOptions, SharedArm, SimLine};
+pub use line::{lock, ArmSimLink, LineError, LineOptions, ServedArm, SharedArm, SimLine};
 pub use module::{Module, ModuleFaults, ModuleState, TimedReply};

@@ -15,14 +15,22 @@
 //!
 //! The arm is shared ([`SharedArm`]) so a test can poke it (push a joint onto its switch,
 //! power-cycle) while [`SimLine::run`] serves it on another thread.
+//!
+//! In-process, on a virtual clock: [`SimLine::sim_link`] gives the host a
+//! [`motus_serial::SimLink`] that runs the same serve step inline in the host's thread
+//! (answers after their wire time and delays, faults seeded), so a driver and the arm run
+//! in one test on virtual time.
 
 use std::io;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Duration;
 
+use motus_clock::{SharedClock, SystemClock};
 use motus_kv01_protocol::{CrcFailure, CrcMode, Decoded, Message, MessageScanner};
-use motus_serial::{Answer, FaultConfig, Link, Responder, ServeOptions, SimServer};
+use motus_serial::{
+    Answer, FaultConfig, LineSettings, Link, NullLink, Responder, ServeOptions, SimLink, SimServer,
+};
 
 use crate::arm::Arm;
 use crate::config::ArmConfig;
@@ -70,27 +78,63 @@ pub struct SimLine {
     served: ServedArm,
 }
 
-/// The arm as the line serves it.
-struct ServedArm {
+/// The arm as the line serves it (the [`Responder`] of its serve step).
+pub struct ServedArm {
     arm: SharedArm,
 }
 
+impl ServedArm {
+    /// The served arm.
+    #[must_use]
+    pub fn arm(&self) -> SharedArm {
+        Arc::clone(&self.arm)
+    }
+}
+
+/// The host's side of a simulated arm served in-process ([`SimLine::sim_link`]).
+pub type ArmSimLink = SimLink<MessageScanner, ServedArm>;
+
 impl SimLine {
-    /// Powers the arm on, serving `link`.
+    /// Powers the arm on, serving `link` on the system clock.
     pub fn new(link: Box<dyn Link>, options: LineOptions) -> Result<SimLine, LineError> {
+        let (server, arm) = Self::parts(link, options, SystemClock::shared())?;
+        Ok(SimLine { server, served: ServedArm { arm } })
+    }
+
+    /// Powers the arm on and serves it in-process on `clock`: the returned link is the
+    /// host's end of a line of `line`'s settings, running the serve step (pacing, idle
+    /// flush, seeded faults: `options`) inline in the caller's thread. Give the host's bus
+    /// master the same clock ([`SimLink::clock`]). The shared arm is for the test to
+    /// inspect and poke.
+    pub fn sim_link(
+        options: LineOptions,
+        line: LineSettings,
+        clock: SharedClock,
+    ) -> Result<(ArmSimLink, SharedArm), LineError> {
+        let (server, arm) = Self::parts(Box::new(NullLink::new(line)), options, clock)?;
+        let served = Arc::new(Mutex::new(ServedArm { arm: Arc::clone(&arm) }));
+        Ok((SimLink::new(server, served, line), arm))
+    }
+
+    /// The serve loop of `options` on `link` and `clock`, and the arm powered on.
+    fn parts(
+        link: Box<dyn Link>,
+        options: LineOptions,
+        clock: SharedClock,
+    ) -> Result<(SimServer<MessageScanner>, SharedArm), LineError> {
         let serve = ServeOptions {
             baud_pacing: options.baud_pacing,
             faults: options.faults,
             poll: Duration::from_millis(5),
             flush_when_idle: true,
         };
-        let server = SimServer::new(link, MessageScanner::requests(CrcMode::Strict), serve)
+        let server = SimServer::with_clock(link, MessageScanner::requests(CrcMode::Strict), serve, clock)
             .map_err(|e| LineError::Options(e.to_string()))?;
         let mut arm = Arm::new(&options.arm)?;
         if let Some(delay) = options.slow_controller {
             arm.set_controller_delay(delay);
         }
-        Ok(SimLine { server, served: ServedArm { arm: Arc::new(Mutex::new(arm)) } })
+        Ok((server, Arc::new(Mutex::new(arm))))
     }
 
     /// The shared arm (lock it with [`lock`]).

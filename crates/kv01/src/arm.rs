@@ -6,6 +6,7 @@ use crate::bus::{Kv01Bus, Kv01Error};
 use crate::controller::{self, JointRuntime, Shared};
 use crate::joints::JointSpec;
 use motus_axis::profile::synchronised;
+use motus_clock::SharedClock;
 use motus_kv01_protocol::faulhaber;
 use motus_kv01_protocol::{Address, Answer, Command, D1Action, JointStatus, ReplyBody, Voltages};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -144,8 +145,15 @@ pub struct LatchedTimeout {
 }
 
 /// The KV-01 arm.
+///
+/// Every wait and every time it keeps (the control cycle, motion profiles, the ages of
+/// readings, the latched safety time-outs, recovery's progress watch) runs on its
+/// [`Clock`](motus_clock::Clock): the system clock ([`Kv01Arm::start`]), or one given to
+/// [`Kv01Arm::start_with_clock`] (a threaded virtual clock in tests, with the bus master
+/// and the simulated arm on the same clock).
 pub struct Kv01Arm {
     bus: Kv01Bus,
+    clock: SharedClock,
     shared: Arc<Shared>,
     stop: Arc<AtomicBool>,
     thread: Mutex<Option<JoinHandle<()>>>,
@@ -157,24 +165,41 @@ pub(crate) fn address(joint: u8) -> Result<Address, ArmError> {
 
 impl Kv01Arm {
     /// Starts the controller on `bus`: it reads every joint at once and then keeps all six
-    /// modules alive every `config.cycle`.
+    /// modules alive every `config.cycle`. Runs on the bus master's clock
+    /// ([`motus_serial::BusMaster::clock`]: the system clock unless the master was made
+    /// with [`motus_serial::BusMaster::with_clock`]).
     pub fn start(bus: Kv01Bus, config: ArmConfig) -> std::io::Result<Kv01Arm> {
+        let clock = Arc::clone(bus.master().clock());
+        Self::start_with_clock(bus, config, clock)
+    }
+
+    /// [`Kv01Arm::start`] on `clock` (e.g. [`motus_clock::SystemClock::shared`], or a
+    /// [`motus_clock::VirtualClock::threaded`] shared with the bus master and an in-process
+    /// simulator): the control thread (started with [`motus_clock::spawn`]) cycles on it
+    /// and every wait of the arm sleeps on it. Give the bus master the same clock.
+    pub fn start_with_clock(bus: Kv01Bus, config: ArmConfig, clock: SharedClock) -> std::io::Result<Kv01Arm> {
         let shared = Arc::new(Shared::new(config));
         let stop = Arc::new(AtomicBool::new(false));
-        let (b, s, f) = (bus.clone(), shared.clone(), stop.clone());
-        let thread = std::thread::Builder::new().name("kv01-arm".into()).spawn(move || {
+        let (b, s, f, c) = (bus.clone(), shared.clone(), stop.clone(), clock.clone());
+        let builder = std::thread::Builder::new().name("kv01-arm".into());
+        let thread = motus_clock::spawn(&clock, builder, move || {
             // The keep-alive and position loop: each module trips after 700 ms without it.
             motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
-            controller::run(&b, &s, &f)
+            controller::run(&b, &s, &f, &*c)
         })?;
-        let arm = Kv01Arm { bus, shared, stop, thread: Mutex::new(Some(thread)) };
+        let arm = Kv01Arm { bus, clock, shared, stop, thread: Mutex::new(Some(thread)) };
         arm.wait_first_readings(Duration::from_secs(2));
         Ok(arm)
     }
 
+    /// The clock the arm runs on.
+    pub fn clock(&self) -> &SharedClock {
+        &self.clock
+    }
+
     fn wait_first_readings(&self, timeout: Duration) {
-        let t0 = Instant::now();
-        while t0.elapsed() < timeout {
+        let t0 = self.clock.now();
+        while self.clock.elapsed(t0) < timeout {
             if self
                 .lock()
                 .joints
@@ -183,7 +208,7 @@ impl Kv01Arm {
             {
                 return;
             }
-            std::thread::sleep(Duration::from_millis(5));
+            self.clock.sleep(Duration::from_millis(5));
         }
     }
 
@@ -209,7 +234,8 @@ impl Kv01Arm {
 
     /// The latest state of joint `joint` (read by the controller within one cycle).
     pub fn joint(&self, joint: u8) -> Result<JointState, ArmError> {
-        self.runtime(joint, |r| r.snapshot(joint))
+        let now = self.clock.now();
+        self.runtime(joint, |r| r.snapshot(joint, now))
     }
 
     /// The communication modules that latched their 700 ms safety time-out (they answer
@@ -234,8 +260,9 @@ impl Kv01Arm {
 
     /// All six joints, from the same controller cycle or fresher.
     pub fn joints(&self) -> Vec<JointState> {
+        let now = self.clock.now();
         let st = self.lock();
-        st.joints.iter().zip(1u8..).map(|(r, j)| r.snapshot(j)).collect()
+        st.joints.iter().zip(1u8..).map(|(r, j)| r.snapshot(j, now)).collect()
     }
 
     /// Sends a Faulhaber command through D0 and returns the answer (e.g. "OK", a number,
@@ -258,7 +285,8 @@ impl Kv01Arm {
 
     fn note_bus_error(&self, joint: u8, e: Kv01Error) -> ArmError {
         if let Kv01Error::SafetyTimeout { .. } = e {
-            let _ = self.runtime(joint, |r| r.latch_timeout(&e));
+            let now = self.clock.now();
+            let _ = self.runtime(joint, |r| r.latch_timeout(&e, now));
         }
         ArmError::Bus(e)
     }
@@ -288,11 +316,12 @@ impl Kv01Arm {
         if let ReplyBody::Status(status) = &body {
             // The reply carries the new status bits: use them now, not one cycle later.
             let status = *status;
+            let now = self.clock.now();
             self.runtime(joint, |r| {
                 if let Some(reading) = &mut r.reading {
                     reading.status = status;
                 }
-                r.status_set_at = Some(Instant::now());
+                r.status_set_at = Some(now);
             })?;
         }
         Ok(body)
@@ -417,7 +446,7 @@ impl Kv01Arm {
         let Some(plan) = synchronised(&limits) else {
             return Ok(()); // nothing moves
         };
-        let start = Instant::now();
+        let start = self.clock.now();
         let mut st = self.lock();
         for (joint, x0, d, _, _) in starts {
             if let Some(r) = st.joints.get_mut(usize::from(joint) - 1) {
@@ -456,7 +485,7 @@ impl Kv01Arm {
 
     /// Waits until none of `joints` moves; a fault on one of them ends the wait with it.
     pub fn wait_idle(&self, joints: &[u8], timeout: Duration) -> Result<Vec<JointState>, ArmError> {
-        let t0 = Instant::now();
+        let t0 = self.clock.now();
         loop {
             let states: Vec<JointState> = joints.iter().map(|&j| self.joint(j)).collect::<Result<_, _>>()?;
             if let Some(s) = states.iter().find(|s| s.fault.is_some()) {
@@ -465,10 +494,10 @@ impl Kv01Arm {
             if states.iter().all(|s| !s.moving) {
                 return Ok(states);
             }
-            if t0.elapsed() > timeout {
+            if self.clock.elapsed(t0) > timeout {
                 return Err(ArmError::WaitTimeout { joints: joints.to_vec(), timeout });
             }
-            std::thread::sleep(Duration::from_millis(5));
+            self.clock.sleep(Duration::from_millis(5));
         }
     }
 
@@ -521,7 +550,8 @@ impl Kv01Arm {
         }
         self.stop.store(true, Ordering::Relaxed);
         if let Some(t) = self.thread.lock().unwrap_or_else(|p| p.into_inner()).take() {
-            let _ = t.join();
+            // The control thread ends at its next cycle, on the clock.
+            let _ = motus_clock::while_blocked(&*self.clock, || t.join());
         }
     }
 }

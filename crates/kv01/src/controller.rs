@@ -7,6 +7,7 @@ use crate::arm::{ArmConfig, JointState};
 use crate::bus::{Kv01Bus, Kv01Error};
 use crate::joints::{normalise_deg, JointSpec};
 use motus_axis::profile::Plan;
+use motus_clock::Clock;
 use motus_kv01_protocol::{Address, Command, JointStatus, ReplyBody};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, MutexGuard};
@@ -57,7 +58,8 @@ pub(crate) struct JointRuntime {
 }
 
 impl JointRuntime {
-    pub fn snapshot(&self, joint: u8) -> JointState {
+    /// The joint's state at `now` (the arm's clock).
+    pub fn snapshot(&self, joint: u8, now: Instant) -> JointState {
         let r = self.reading;
         JointState {
             joint,
@@ -67,13 +69,13 @@ impl JointRuntime {
             enabled: self.enabled,
             moving: self.motion.is_some() || self.override_rpm.is_some_and(|v| v != 0.0),
             fault: self.timeout_latched.clone().or_else(|| self.fault.clone()),
-            age: r.map(|r| r.at.elapsed()).unwrap_or(Duration::MAX),
+            age: r.map(|r| now.saturating_duration_since(r.at)).unwrap_or(Duration::MAX),
             longest_gap: self.longest_gap,
         }
     }
 
-    pub fn latch_timeout(&mut self, e: &Kv01Error) {
-        let now = Instant::now();
+    /// Latches the module's "TO" answer seen at `now` (the arm's clock).
+    pub fn latch_timeout(&mut self, e: &Kv01Error, now: Instant) {
         if self.timeout_latched.is_none() {
             tracing::error!("{e}");
             self.timeout_latched = Some(e.to_string());
@@ -172,9 +174,9 @@ fn speed_command(spec: &JointSpec, r: &mut JointRuntime, config: &ArmConfig, now
     Some(spec.rpm_for(deg_s))
 }
 
-/// The control loop; returns when `stop` is set.
-pub(crate) fn run(bus: &Kv01Bus, shared: &Shared, stop: &AtomicBool) {
-    let mut next = Instant::now();
+/// The control loop, cycling on `clock`; returns when `stop` is set.
+pub(crate) fn run(bus: &Kv01Bus, shared: &Shared, stop: &AtomicBool, clock: &dyn Clock) {
+    let mut next = clock.now();
     while !stop.load(Ordering::Relaxed) {
         for joint in 1u8..=6 {
             let Some(addr) = Address::joint(joint) else { continue };
@@ -185,7 +187,7 @@ pub(crate) fn run(bus: &Kv01Bus, shared: &Shared, stop: &AtomicBool) {
                 let Some(spec) = config.joints.get(i).copied() else { continue };
                 let Some(r) = st.joints.get_mut(i) else { continue };
                 let cmd = if r.enabled && r.timeout_latched.is_none() {
-                    speed_command(&spec, r, &config, Instant::now())
+                    speed_command(&spec, r, &config, clock.now())
                 } else {
                     None
                 };
@@ -198,9 +200,9 @@ pub(crate) fn run(bus: &Kv01Bus, shared: &Shared, stop: &AtomicBool) {
                 Some(rpm) => Command::Fast { text: format!("V{}", rpm.round() as i64) },
                 None => Command::ReadResolver,
             };
-            let sent_at = Instant::now();
+            let sent_at = clock.now();
             let result = bus.transact(addr, request);
-            let now = Instant::now();
+            let now = clock.now();
             let mut st = shared.lock();
             let Some(r) = st.joints.get_mut(i) else { continue };
             match result {
@@ -232,15 +234,15 @@ pub(crate) fn run(bus: &Kv01Bus, shared: &Shared, stop: &AtomicBool) {
                         tracing::warn!(joint, %answer, "speed command answered instead of a resolver reading");
                     }
                 }
-                Err(e @ Kv01Error::SafetyTimeout { .. }) => r.latch_timeout(&e),
+                Err(e @ Kv01Error::SafetyTimeout { .. }) => r.latch_timeout(&e, now),
                 Err(e) => tracing::debug!(joint, error = %e, "cycle transaction failed"),
             }
         }
         let cycle = shared.lock().config.cycle;
         next += cycle;
-        let now = Instant::now();
+        let now = clock.now();
         if next > now {
-            std::thread::sleep(next - now);
+            clock.sleep_until(next);
         } else {
             next = now;
         }

@@ -8,6 +8,12 @@
 //!   order (EN before brake release; brake before DI), the soft limits, and synchronised
 //!   multi-joint moves.
 //! * [`JointSpec`]: the spec's offset and limit table, gear and sign per joint.
+//!
+//! Time is an input: the control cycle, the arm's waits, the ages of readings, the latched
+//! safety time-outs and recovery's progress watch all run on a [`motus_clock::Clock`] (the
+//! bus master's, or the one given to [`Kv01Arm::start_with_clock`]), so tests run the
+//! driver and the simulated arm (`motus_kv01_sim::SimLine::sim_link`) in one process on a
+//! threaded virtual clock.
 
 #![forbid(unsafe_code)]
 

@@ -7,7 +7,7 @@
 
 use crate::arm::{address, ArmError, JointState, Kv01Arm};
 use motus_kv01_protocol::{Command, D1Action};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// Speed of the move out (rpm): well inside the restricted-mode limit of 399 rpm.
 pub const RECOVERY_RPM: f64 = 200.0;
@@ -100,17 +100,18 @@ impl Kv01Arm {
         self.reset_faults(joint)?;
         let rpm = dir * RECOVERY_RPM * f64::from(spec.speed_sign.signum());
         self.run_at_rpm(joint, rpm)?;
-        let t0 = Instant::now();
+        let clock = self.clock();
+        let t0 = clock.now();
         let expected = dir * f64::from(spec.speed_sign.signum()) * spec.deg_s_per_rpm().signum();
-        let mut last_progress = (start_angle, Instant::now());
+        let mut last_progress = (start_angle, clock.now());
         loop {
-            std::thread::sleep(Duration::from_millis(10));
+            clock.sleep(Duration::from_millis(10));
             let s = self.joint(joint)?;
             progress(&s);
             let moved = (s.angle_deg - start_angle) * expected;
             if (s.angle_deg - last_progress.0).abs() >= STALL_DEG {
-                last_progress = (s.angle_deg, Instant::now());
-            } else if last_progress.1.elapsed() > STALL_TIME {
+                last_progress = (s.angle_deg, clock.now());
+            } else if clock.elapsed(last_progress.1) > STALL_TIME {
                 return Err(ArmError::Unsafe {
                     joint,
                     reason: format!(
@@ -152,7 +153,7 @@ impl Kv01Arm {
                         .unwrap_or_else(|| "the joint stopped before leaving its limit switch".into()),
                 });
             }
-            if t0.elapsed() > timeout {
+            if clock.elapsed(t0) > timeout {
                 return Err(ArmError::WaitTimeout { joints: vec![joint], timeout });
             }
         }

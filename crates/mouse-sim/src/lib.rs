@@ -10,7 +10,8 @@
 //!   packet's counts to i16 (carrying the excess), and builds the packets, optionally with
 //!   garbage bytes between them (a noisy line).
 //! * [`serve`]: sends a packet every period (10 ms by default) on a [`motus_serial::Link`]
-//!   (a pty for tests and demos), paced at the line's baud rate.
+//!   (a pty for tests and demos), paced at the line's baud rate; [`serve_with_clock`]
+//!   waits on any [`motus_clock::Clock`] (a virtual one in tests).
 
 #![forbid(unsafe_code)]
 
@@ -18,4 +19,4 @@ mod sensor;
 mod serve;
 
 pub use sensor::{MouseMotion, MouseSensor, SensorConfig, SensorError};
-pub use serve::{serve, ServeStats};
+pub use serve::{serve, serve_with_clock, ServeStats};

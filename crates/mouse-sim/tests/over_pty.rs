@@ -1,7 +1,8 @@
-//! The simulated sensor served on a real pseudo-terminal; a host opens the pty like a
-//! serial port, decodes the stream with the resynchronising decoder and sums the counts:
-//! they equal the fed displacement times 8500 counts/m within one count, with and without
-//! garbage on the line. Also checks the packet rate from the pacing.
+//! A smoke test of the real transport: the simulated sensor served on a real
+//! pseudo-terminal; a host opens the pty like a serial port, decodes the stream with the
+//! resynchronising decoder and sums the counts: they equal the fed displacement times 8500
+//! counts/m within one count. Real time: liveness bounds only. The exact timing, garbage
+//! and seeds are tested on virtual time in `on_virtual_time.rs`.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -68,7 +69,7 @@ fn run(config: SensorConfig, steps: u32, step_m: (f64, f64)) -> Run {
         } else {
             quiet_since = None;
         }
-        assert!(start.elapsed() < Duration::from_secs(20), "test ran away");
+        assert!(start.elapsed() < Duration::from_secs(60), "test ran away");
     }
     feeder.join().unwrap();
     // The pty (returned by the server thread) stays open until the host has read all.
@@ -93,20 +94,13 @@ fn check_counts(r: &Run) {
 
 #[test]
 fn counts_over_pty_equal_fed_displacement() {
-    // 200 steps of ~1.3 mm x and -0.7 mm y: ~0.26 m, ~2200 counts.
-    let r = run(SensorConfig::default(), 200, (0.0013, -0.0007));
+    // 100 steps of ~1.3 mm x and -0.7 mm y: ~0.13 m, ~1100 counts.
+    let r = run(SensorConfig::default(), 100, (0.0013, -0.0007));
     check_counts(&r);
-    assert!(r.sum.0 > 1500 && r.sum.1 < -1000, "{:?}", r.sum);
+    assert!(r.sum.0 > 750 && r.sum.1 < -500, "{:?}", r.sum);
     assert_eq!(r.garbage, 0);
-    // One packet per 10 ms (+1 final) over the run: not much more than elapsed/10 ms.
+    // The sensor never sends early: at most one packet per 10 ms (+1 final) over the run.
     let max = r.elapsed.as_millis() as u64 / 10 + 2;
-    assert!(r.packets >= 40 && r.packets <= max, "{} packets in {:?}", r.packets, r.elapsed);
-}
-
-#[test]
-fn counts_survive_garbage_on_the_line() {
-    let cfg = SensorConfig { garbage_rate: 0.3, seed: 42, ..SensorConfig::default() };
-    let r = run(cfg, 150, (-0.002, 0.0011));
-    check_counts(&r);
-    assert!(r.garbage > 0, "no garbage was injected");
+    println!("{} packets in {:?}", r.packets, r.elapsed);
+    assert!(r.packets >= 2 && r.packets <= max, "{} packets in {:?}", r.packets, r.elapsed);
 }

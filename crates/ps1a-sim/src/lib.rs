@@ -19,7 +19,7 @@ mod module;
 mod state_file;
 mod state_writer;
 
-pub use line::{LineOptions, SimLine};
+pub use line::{LineError, LineOptions, Modules, SimLine};
 pub use machine::MachineConfig;
 pub use module::Module;
 pub use state_file::{ModuleState, StateFile, StateFileError};

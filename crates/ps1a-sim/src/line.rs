@@ -9,17 +9,27 @@
 //! by byte at the baud rate) and **faults** (dropped replies, corrupted bytes in both
 //! directions).
 //!
+//! Simulated time is on a [`motus_clock::Clock`]: the system clock for [`SimLine::new`],
+//! any clock for [`SimLine::with_clock`]. On a virtual clock the line is served **in
+//! process** by [`SimLine::into_sim_link`]: a [`SimLink`] is the host's link, and the
+//! same serve step answers in the host's thread, on virtual time.
+//!
 //! [`CommandStream`]: motus_ps1a_protocol::CommandStream
 
 use crate::machine::MachineConfig;
 use crate::module::Module;
 use crate::state_file::{ModuleState, StateFile, StateFileError};
 use crate::state_writer::StateWriter;
+use motus_clock::{SharedClock, SystemClock};
 use motus_ps1a_protocol::{ChecksumError, CommandFrame, CommandScanner, Parameters};
-use motus_serial::{Answer, FaultConfig, Link, Responder, ServeOptions, SimServer};
+use motus_serial::{Answer, FaultConfig, Link, Responder, ServeOptions, SimLink, SimServer};
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
-use std::time::{Duration, Instant};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+/// How often a moving machine's position is written to the state file, in simulated time.
+const SAVE_PERIOD: Duration = Duration::from_millis(200);
 
 /// Options of a simulated line.
 #[derive(Debug, Clone, Default)]
@@ -45,18 +55,40 @@ pub struct SimLine {
     modules: Modules,
 }
 
-/// The modules of the line and their state file: what answers the host.
-struct Modules {
+/// The modules of the line and their state file: the line's [`Responder`], what answers
+/// the host.
+pub struct Modules {
     modules: Vec<Module>,
-    last_save: Instant,
+    /// The latest simulated time the modules were brought to.
+    now: Duration,
+    /// When the state was last handed to the state file's writer (simulated time).
+    last_save: Duration,
     saved_positions: Vec<f64>,
     /// Writes the state file off the serving loop (`None`: no state file).
     writer: Option<StateWriter>,
 }
 
 impl SimLine {
-    /// Powers the modules on (from the state file if it exists) on `link`.
+    /// Powers the modules on (from the state file if it exists) on `link`, on the system
+    /// clock.
+    ///
+    /// # Errors
+    /// [`LineError::Options`] for bad options, [`LineError::Model`] for an unreadable
+    /// state file.
     pub fn new(link: Box<dyn Link>, options: LineOptions) -> Result<SimLine, LineError> {
+        Self::with_clock(link, options, SystemClock::shared())
+    }
+
+    /// Powers the modules on (from the state file if it exists) on `link`, with simulated
+    /// time on `clock` (for an in-process line, see [`SimLine::into_sim_link`]).
+    ///
+    /// # Errors
+    /// As [`SimLine::new`].
+    pub fn with_clock(
+        link: Box<dyn Link>,
+        options: LineOptions,
+        clock: SharedClock,
+    ) -> Result<SimLine, LineError> {
         if options.addresses.is_empty() || options.addresses.len() > motus_ps1a_protocol::MAX_MODULES_PER_LINE
         {
             return Err(LineError::Options(format!(
@@ -102,12 +134,18 @@ impl SimLine {
             poll: Duration::from_millis(10),
             flush_when_idle: true,
         };
-        let server =
-            SimServer::new(link, CommandScanner, serve).map_err(|e| LineError::Options(e.to_string()))?;
+        let server = SimServer::with_clock(link, CommandScanner, serve, clock)
+            .map_err(|e| LineError::Options(e.to_string()))?;
         let writer = options.state_file.clone().map(StateWriter::spawn).transpose()?;
         let mut line = SimLine {
             server,
-            modules: Modules { modules, last_save: Instant::now(), saved_positions: Vec::new(), writer },
+            modules: Modules {
+                modules,
+                now: Duration::ZERO,
+                last_save: Duration::ZERO,
+                saved_positions: Vec::new(),
+                writer,
+            },
         };
         line.save()?;
         Ok(line)
@@ -134,15 +172,47 @@ impl SimLine {
     }
 
     /// Serves the line until `stop` is set.
+    ///
+    /// # Errors
+    /// An IO error of the link, or of the state file.
     pub fn run(&mut self, stop: &AtomicBool) -> std::io::Result<()> {
         self.server.run(&mut self.modules, stop)?;
         self.save().map_err(std::io::Error::other)
     }
+
+    /// The line served in process, for a host on the same (virtual) clock: the host's
+    /// link, and the modules it serves (shared with the link: lock them to inspect or
+    /// change the simulated modules, or to [save](Modules::save) the state file). The
+    /// link given when the line was made is not used (e.g. a
+    /// [`motus_serial::NullLink`] of the line's settings).
+    pub fn into_sim_link(self) -> (SimLink<CommandScanner, Modules>, Arc<Mutex<Modules>>) {
+        let line = self.server.line();
+        let modules = Arc::new(Mutex::new(self.modules));
+        (SimLink::new(self.server, Arc::clone(&modules), line), modules)
+    }
 }
 
 impl Modules {
+    /// The modules.
+    pub fn modules(&self) -> &[Module] {
+        &self.modules
+    }
+
+    /// Mutable access to the modules (fault injection, power cycles in tests).
+    pub fn modules_mut(&mut self) -> &mut [Module] {
+        &mut self.modules
+    }
+
+    /// The latest simulated time the modules were brought to.
+    pub fn now(&self) -> Duration {
+        self.now
+    }
+
     /// Writes the state file (if any) and returns once it is on disk.
-    fn save(&mut self) -> Result<(), StateFileError> {
+    ///
+    /// # Errors
+    /// The state file could not be written.
+    pub fn save(&mut self) -> Result<(), StateFileError> {
         self.save_in_background()?;
         self.writer.as_ref().map_or(Ok(()), StateWriter::flush)
     }
@@ -150,7 +220,7 @@ impl Modules {
     /// Hands the state to the state file's writer and returns at once, so that a slow
     /// disk never delays a reply (see `state_writer`). Fails with an earlier write's error.
     fn save_in_background(&mut self) -> Result<(), StateFileError> {
-        self.last_save = Instant::now();
+        self.last_save = self.now;
         self.saved_positions = self.modules.iter().map(Module::machine_position).collect();
         let Some(writer) = &self.writer else { return Ok(()) };
         let state = StateFile {
@@ -189,13 +259,14 @@ impl Responder for Modules {
     }
 
     fn tick(&mut self, now: Duration) -> std::io::Result<()> {
+        self.now = self.now.max(now);
         for m in &mut self.modules {
             m.advance_to(now);
         }
         let moved =
             self.modules.iter().map(Module::machine_position).ne(self.saved_positions.iter().copied());
         let eeprom = self.modules.iter_mut().any(|m| m.take_eeprom_dirty());
-        if eeprom || (moved && self.last_save.elapsed() > Duration::from_millis(200)) {
+        if eeprom || (moved && self.now.saturating_sub(self.last_save) > SAVE_PERIOD) {
             self.save_in_background().map_err(std::io::Error::other)?;
         }
         Ok(())

@@ -9,6 +9,11 @@
 //! * [`FramedLink`]: a link read frame by frame with a codec's stream decoder.
 //! * [`SimServer`]: the serve loop of every serial simulator; a protocol plugs in its
 //!   codec's scanner and a [`Responder`].
+//! * [`SimLink`]: the host's side of an in-process simulated line: the simulator's serve
+//!   step runs inline in the host's thread on a (virtual) [`motus_clock::Clock`], so a
+//!   driver and its simulator run in one test on virtual time.
+//! * Every wait is on a [`motus_clock::Clock`] (the system clock by default; `with_clock`
+//!   constructors take another).
 //! * [`BusMaster`]: request/response transactions on a multi-drop line (replies found by
 //!   the codec's [`motus_wire::Scanner`]), with time-outs
 //!   from the baud rate, retries, resynchronisation, per-device counters, exclusive
@@ -31,6 +36,7 @@ pub use link::framed::FramedLink;
 pub use link::paced::{sleep_until, Paced};
 pub use link::pty::PtyLink;
 pub use link::serial_port::SerialLink;
+pub use link::sim::{NullLink, SimLink};
 pub use link::trace::Traced;
 pub use link::{LineSettings, Link};
 pub use serve::{Answer, LineError, Responder, ServeOptions, ServeThread, SimServer};

@@ -14,12 +14,21 @@
 //! * **faults** ([`FaultInjector`]): whole answers dropped, bytes corrupted in both
 //!   directions, seeded.
 //!
-//! Simulated time is the time since the server was created ([`SimServer::now`]). A
+//! Simulated time is the time since the server was created, on its [`Clock`]
+//! ([`SimServer::now`]; the system clock unless made with [`SimServer::with_clock`]). A
 //! [`ServeThread`] runs a simulated line on its own thread until stopped.
+//!
+//! ## One serve step, two drivers
+//! The serving itself (decoding, idle flush, arrival times, answer delays, frame counts)
+//! is one step function shared by two drivers: [`SimServer::run`], a loop that reads a
+//! real link (a pty) and sleeps on the clock until each instant, and [`crate::SimLink`],
+//! which runs the step inline, in the host's thread, when the host writes, and queues
+//! the answers stamped with the virtual instant they reach the host.
 
 use crate::link::fault::{FaultConfig, FaultInjector, RateError};
-use crate::link::paced::{sleep_until, Paced};
-use crate::link::Link;
+use crate::link::paced::Paced;
+use crate::link::{LineSettings, Link};
+use motus_clock::{Clock, SharedClock, SystemClock};
 use motus_wire::{Scanner, Stream, StreamEvent, StreamStats};
 use std::io;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -91,60 +100,299 @@ pub trait Responder {
     }
 
     /// Brings the devices up to `now`; called while the line is idle and after every read.
+    /// The times handed to a responder never go back.
     fn tick(&mut self, now: Duration) -> io::Result<()>;
+}
+
+/// How the serve step waits and where its answers go: the threaded loop sleeps on its
+/// clock and writes to its (paced, faulty) link; an inline [`crate::SimLink`] moves a
+/// cursor and queues stamped bytes.
+pub(crate) trait Port {
+    /// The serve step's current instant.
+    fn now(&self) -> Instant;
+    /// Waits until `at` (a request has arrived).
+    fn wait_until(&mut self, at: Instant);
+    /// Sends an answer whose first byte starts at `at`.
+    fn send(&mut self, at: Instant, bytes: &[u8]) -> io::Result<()>;
+}
+
+/// The port of [`SimServer::run`]: real waits on the clock, the server's link.
+struct ThreadedPort<'a> {
+    link: &'a mut dyn Link,
+    clock: &'a dyn Clock,
+}
+
+impl Port for ThreadedPort<'_> {
+    fn now(&self) -> Instant {
+        self.clock.now()
+    }
+
+    fn wait_until(&mut self, at: Instant) {
+        self.clock.sleep_until(at);
+    }
+
+    fn send(&mut self, at: Instant, bytes: &[u8]) -> io::Result<()> {
+        self.clock.sleep_until(at);
+        self.link.write_all(bytes)
+    }
+}
+
+/// The serving state and the one serve step, shared by [`SimServer::run`] and
+/// [`crate::SimLink`].
+pub(crate) struct Core<S> {
+    decoder: Stream<S>,
+    options: ServeOptions,
+    clock: SharedClock,
+    start: Instant,
+    frames_served: u64,
+    line: LineSettings,
+    idle_gap: Duration,
+    /// When the first byte of what the decoder holds arrived, and how many bytes the
+    /// decoder had resolved (in frames or as garbage) before it.
+    first_byte_at: Option<(Instant, u64)>,
+    /// When the last byte received was on the wire.
+    last_byte_at: Instant,
+    /// The latest simulated time handed to the responder.
+    device_time: Duration,
+}
+
+/// A quiet line of three character times (at least 2 ms) ends a frame.
+fn idle_gap(line: LineSettings) -> Duration {
+    line.wire_time(3).max(Duration::from_millis(2))
+}
+
+impl<S: Scanner> Core<S> {
+    fn new(scanner: S, options: ServeOptions, clock: SharedClock, line: LineSettings) -> Self {
+        let start = clock.now();
+        Core {
+            decoder: Stream::new(scanner),
+            options,
+            clock,
+            start,
+            frames_served: 0,
+            line,
+            idle_gap: idle_gap(line),
+            first_byte_at: None,
+            last_byte_at: start,
+            device_time: Duration::ZERO,
+        }
+    }
+
+    pub(crate) fn options(&self) -> &ServeOptions {
+        &self.options
+    }
+
+    pub(crate) fn clock(&self) -> &SharedClock {
+        &self.clock
+    }
+
+    pub(crate) fn start(&self) -> Instant {
+        self.start
+    }
+
+    pub(crate) fn frames_served(&self) -> u64 {
+        self.frames_served
+    }
+
+    pub(crate) fn decoder_stats(&self) -> StreamStats {
+        self.decoder.stats()
+    }
+
+    /// Serves on a line of `line`'s settings from now on.
+    pub(crate) fn set_line(&mut self, line: LineSettings) {
+        self.line = line;
+        self.idle_gap = idle_gap(line);
+    }
+
+    /// When the line's silence ends what the decoder holds, if it holds anything and
+    /// frames end with silence.
+    pub(crate) fn idle_flush_at(&self) -> Option<Instant> {
+        (self.options.flush_when_idle && self.decoder.pending() > 0)
+            .then_some(self.last_byte_at + self.idle_gap)
+    }
+
+    /// The simulated time of `at`, never earlier than one already handed to the responder.
+    fn device_now(&mut self, at: Instant) -> Duration {
+        let now = at.saturating_duration_since(self.start).max(self.device_time);
+        self.device_time = now;
+        now
+    }
+
+    /// Brings the responder up to `at`.
+    pub(crate) fn tick<R: Responder + ?Sized>(&mut self, at: Instant, responder: &mut R) -> io::Result<()> {
+        let now = self.device_now(at);
+        responder.tick(now)
+    }
+
+    /// The line went quiet: ends what the decoder holds (a half-received frame is
+    /// dropped like garbage) and serves it.
+    pub(crate) fn flush<R>(&mut self, responder: &mut R, port: &mut dyn Port) -> io::Result<()>
+    where
+        R: Responder<Frame = S::Frame, Error = S::Error> + ?Sized,
+        S::Error: std::fmt::Debug,
+    {
+        self.decoder.flush();
+        self.serve(responder, port)?;
+        self.decoder.clear();
+        self.first_byte_at = None;
+        Ok(())
+    }
+
+    /// Bytes received: the first was on the wire at `first_at`, the last at `last_at`.
+    pub(crate) fn receive<R>(
+        &mut self,
+        bytes: &[u8],
+        first_at: Instant,
+        last_at: Instant,
+        responder: &mut R,
+        port: &mut dyn Port,
+    ) -> io::Result<()>
+    where
+        R: Responder<Frame = S::Frame, Error = S::Error> + ?Sized,
+        S::Error: std::fmt::Debug,
+    {
+        if bytes.is_empty() {
+            return Ok(());
+        }
+        if self.first_byte_at.is_none() {
+            self.first_byte_at = Some((first_at, self.resolved()));
+        }
+        self.last_byte_at = last_at;
+        self.decoder.push(bytes);
+        self.serve(responder, port)?;
+        if self.decoder.pending() == 0 {
+            self.first_byte_at = None;
+        }
+        Ok(())
+    }
+
+    /// Bytes the decoder has resolved so far, in frames or as garbage.
+    fn resolved(&self) -> u64 {
+        let stats = self.decoder.stats();
+        stats.frame_bytes + stats.garbage_bytes
+    }
+
+    /// Hands every request decoded so far to `responder` and sends the answers on time.
+    fn serve<R>(&mut self, responder: &mut R, port: &mut dyn Port) -> io::Result<()>
+    where
+        R: Responder<Frame = S::Frame, Error = S::Error> + ?Sized,
+        S::Error: std::fmt::Debug,
+    {
+        while let Some(request) = self.decoder.next_event() {
+            if let StreamEvent::Garbage { bytes } = request {
+                tracing::debug!(bytes, "skipped garbage");
+                continue;
+            }
+            // With pacing, a frame has arrived once its last byte is on the wire: the
+            // bytes from the first one received (garbage and earlier frames included)
+            // through its end take their wire time. A corrupt one, whose length is
+            // unknown, has arrived when it is seen.
+            let arrived = match (self.options.baud_pacing, self.first_byte_at, &request) {
+                (true, Some((t0, base)), StreamEvent::Frame(_)) => {
+                    let through = self.resolved().saturating_sub(base);
+                    let at = t0 + self.line.wire_time(usize::try_from(through).unwrap_or(usize::MAX));
+                    port.wait_until(at);
+                    at
+                }
+                _ => port.now(),
+            };
+            let now = self.device_now(arrived);
+            let answer = match request {
+                StreamEvent::Frame(frame) => responder.respond(frame, now),
+                StreamEvent::Corrupt(error) => {
+                    tracing::debug!(?error, "corrupt request");
+                    responder.corrupt(error, now)
+                }
+                StreamEvent::Garbage { .. } => None,
+            };
+            let Some(answer) = answer else { continue };
+            port.send(arrived + answer.delay, &answer.bytes)?;
+            self.frames_served += 1;
+        }
+        Ok(())
+    }
 }
 
 /// Serves a [`Responder`] on a link (see the module documentation).
 pub struct SimServer<S> {
     link: Box<dyn Link>,
-    decoder: Stream<S>,
-    options: ServeOptions,
-    start: Instant,
-    frames_served: u64,
+    core: Core<S>,
 }
 
 impl<S: Scanner> SimServer<S> {
-    /// Serves `link`, finding requests with `scanner`; wraps the link for pacing and faults.
+    /// Serves `link` on the system clock, finding requests with `scanner`; wraps the link
+    /// for pacing and faults.
     ///
     /// # Errors
     /// A fault rate outside 0..=1.
     pub fn new(link: Box<dyn Link>, scanner: S, options: ServeOptions) -> Result<Self, RateError> {
+        Self::with_clock(link, scanner, options, SystemClock::shared())
+    }
+
+    /// Serves `link` with simulated time on `clock`, finding requests with `scanner`;
+    /// wraps the link for pacing and faults. A server for an in-process
+    /// [`crate::SimLink`] takes the host's clock (a [`motus_clock::VirtualClock`]); its
+    /// link is then not used (e.g. [`crate::NullLink`]).
+    ///
+    /// # Errors
+    /// A fault rate outside 0..=1.
+    pub fn with_clock(
+        link: Box<dyn Link>,
+        scanner: S,
+        options: ServeOptions,
+        clock: SharedClock,
+    ) -> Result<Self, RateError> {
         options.faults.check()?;
+        let line = link.line();
         let mut link = link;
         if options.baud_pacing {
-            link = Box::new(Paced::new(link));
+            link = Box::new(Paced::with_clock(link, Arc::clone(&clock)));
         }
         if options.faults.is_active() {
             // Outside the pacing: a dropped answer is a whole answer.
             link = Box::new(FaultInjector::new(link, options.faults));
         }
-        Ok(SimServer {
-            link,
-            decoder: Stream::new(scanner),
-            options,
-            start: Instant::now(),
-            frames_served: 0,
-        })
+        Ok(SimServer { link, core: Core::new(scanner, options, clock, line) })
     }
 
     /// When simulated time started.
     pub fn start(&self) -> Instant {
-        self.start
+        self.core.start
     }
 
-    /// Simulated time now.
+    /// Simulated time now: the clock's time since the start.
     pub fn now(&self) -> Duration {
-        self.start.elapsed()
+        self.core.clock.elapsed(self.core.start)
+    }
+
+    /// The clock of simulated time.
+    pub fn clock(&self) -> &SharedClock {
+        &self.core.clock
+    }
+
+    /// How the line behaves.
+    pub fn options(&self) -> &ServeOptions {
+        &self.core.options
+    }
+
+    /// The settings of the line served (the link's when the server was made).
+    pub fn line(&self) -> LineSettings {
+        self.core.line
     }
 
     /// Answers sent so far.
     pub fn frames_served(&self) -> u64 {
-        self.frames_served
+        self.core.frames_served
     }
 
     /// The request decoder's totals (frames, garbage bytes, corrupt frames).
     pub fn decoder_stats(&self) -> StreamStats {
-        self.decoder.stats()
+        self.core.decoder.stats()
+    }
+
+    /// The serving state, without the link (for an inline [`crate::SimLink`]).
+    pub(crate) fn into_core(self) -> Core<S> {
+        self.core
     }
 
     /// Serves until `stop` is set.
@@ -156,75 +404,19 @@ impl<S: Scanner> SimServer<S> {
         R: Responder<Frame = S::Frame, Error = S::Error>,
         S::Error: std::fmt::Debug,
     {
-        let idle_gap = (self.link.line().char_time() * 3).max(Duration::from_millis(2));
+        let clock = Arc::clone(&self.core.clock);
         let mut buf = [0u8; 256];
-        let mut first_byte_at: Option<Instant> = None;
-        let mut last_byte_at = Instant::now();
         while !stop.load(Ordering::Relaxed) {
-            let n = self.link.read(&mut buf, self.options.poll)?;
-            let now = Instant::now();
-            let quiet = now.saturating_duration_since(last_byte_at) > idle_gap;
-            if self.options.flush_when_idle && quiet && self.decoder.pending() > 0 {
-                self.decoder.flush();
-                self.serve(responder, &mut first_byte_at)?;
-                self.decoder.clear();
-                first_byte_at = None;
+            let n = self.link.read(&mut buf, self.core.options.poll)?;
+            let now = clock.now();
+            let mut port = ThreadedPort { link: &mut *self.link, clock: &*clock };
+            if self.core.idle_flush_at().is_some_and(|at| now >= at) {
+                self.core.flush(responder, &mut port)?;
             }
-            if n > 0 {
-                first_byte_at.get_or_insert(now);
-                last_byte_at = now;
-                self.decoder.push(buf.get(..n).unwrap_or_default());
-                self.serve(responder, &mut first_byte_at)?;
-                if self.decoder.pending() == 0 {
-                    first_byte_at = None;
-                }
-            }
-            responder.tick(self.now())?;
+            self.core.receive(buf.get(..n).unwrap_or_default(), now, now, responder, &mut port)?;
+            self.core.tick(clock.now(), responder)?;
         }
-        responder.tick(self.now())
-    }
-
-    /// Hands every request decoded so far to `responder` and sends the answers on time. The
-    /// first request takes `first_byte_at` as the time its first byte arrived.
-    fn serve<R>(&mut self, responder: &mut R, first_byte_at: &mut Option<Instant>) -> io::Result<()>
-    where
-        R: Responder<Frame = S::Frame, Error = S::Error>,
-        S::Error: std::fmt::Debug,
-    {
-        let line = self.link.line();
-        let mut frame_bytes = self.decoder.stats().frame_bytes;
-        while let Some(request) = self.decoder.next_event() {
-            if let StreamEvent::Garbage { bytes } = request {
-                tracing::debug!(bytes, "skipped garbage");
-                continue;
-            }
-            // A frame has arrived once its last byte is on the wire (a corrupt one, whose
-            // length is unknown, when it is seen).
-            let frame_len = self.decoder.stats().frame_bytes.saturating_sub(frame_bytes);
-            frame_bytes += frame_len;
-            let arrived = match (self.options.baud_pacing, first_byte_at.take(), &request) {
-                (true, Some(t0), StreamEvent::Frame(_)) => {
-                    let at = t0 + line.wire_time(usize::try_from(frame_len).unwrap_or(usize::MAX));
-                    sleep_until(at);
-                    at
-                }
-                _ => Instant::now(),
-            };
-            let now = arrived.saturating_duration_since(self.start);
-            let answer = match request {
-                StreamEvent::Frame(frame) => responder.respond(frame, now),
-                StreamEvent::Corrupt(error) => {
-                    tracing::debug!(?error, "corrupt request");
-                    responder.corrupt(error, now)
-                }
-                StreamEvent::Garbage { .. } => None,
-            };
-            let Some(answer) = answer else { continue };
-            sleep_until(arrived + answer.delay);
-            self.link.write_all(&answer.bytes)?;
-            self.frames_served += 1;
-        }
-        Ok(())
+        self.core.tick(clock.now(), responder)
     }
 }
 

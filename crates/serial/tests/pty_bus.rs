@@ -1,5 +1,7 @@
 //! The bus master over a real pseudo-terminal against a tiny responder thread: bytes
-//! cross the kernel's pty, time-outs and retries happen in real time.
+//! cross the kernel's pty, time-outs and retries happen in real time. Smoke tests of the
+//! real transport, with generous liveness bounds only; the exact timing of exchanges,
+//! time-outs and retries is tested on virtual time in `sim_link.rs`.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use motus_serial::*;
@@ -78,7 +80,9 @@ fn missing_device_times_out_in_time_and_line_keeps_serving() {
     let took = t0.elapsed();
     let per_attempt = bus.timeout_for(2, 3);
     assert!(matches!(err, BusError::Timeout { attempts: 3, .. }), "{err}");
-    assert!(took >= per_attempt * 3 && took < per_attempt * 3 + Duration::from_millis(60), "{took:?}");
+    println!("3 time-outs of {per_attempt:?} took {took:?}");
+    // Real time: never shorter than the time-outs; the upper bound only proves liveness.
+    assert!(took >= per_attempt * 3 && took < per_attempt * 3 + Duration::from_secs(5), "{took:?}");
     let ok =
         bus.transact(&Request { device: 1, bytes: &[1, 1], reply_len: 3, idempotent: true }, &Toy, |f| {
             f.0 == 1
@@ -106,9 +110,17 @@ fn a_zero_time_out_read_polls_what_has_arrived() {
     let mut buf = [0u8; 16];
     let t0 = Instant::now();
     assert_eq!(port.read(&mut buf, Duration::ZERO).unwrap(), 0, "nothing sent yet");
-    assert!(t0.elapsed() < Duration::from_millis(20), "a poll does not wait");
+    let took = t0.elapsed();
+    println!("a poll of an empty line took {took:?}");
+    assert!(took < Duration::from_secs(2), "a poll does not wait for a time-out: {took:?}");
     pty.write_all(&[1, 2, 3]).unwrap();
-    std::thread::sleep(Duration::from_millis(20));
-    assert_eq!(port.read(&mut buf, Duration::ZERO).unwrap(), 3);
-    assert_eq!(&buf[..3], &[1, 2, 3]);
+    // Polls until the bytes have crossed the pty (a liveness bound, not a figure).
+    let mut got = Vec::new();
+    let t0 = Instant::now();
+    while got.len() < 3 && t0.elapsed() < Duration::from_secs(10) {
+        let n = port.read(&mut buf, Duration::ZERO).unwrap();
+        got.extend_from_slice(&buf[..n]);
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    assert_eq!(got, [1, 2, 3]);
 }

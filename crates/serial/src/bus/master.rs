@@ -5,12 +5,17 @@
 //! time-out is the wire time of request and reply at the line's baud rate plus a margin.
 //! Idempotent requests are retried; a non-idempotent one (e.g. a relative move) is sent
 //! once, and a failure says that its outcome is unknown.
+//!
+//! Every deadline and statistics window is on the master's [clock](motus_clock::Clock)
+//! (the system clock unless made with [`BusMaster::with_clock`]): on a virtual clock with
+//! an in-process [`crate::SimLink`], a time-out takes virtual time only.
 
 use super::stats::{BusStats, DeviceStats};
 use crate::link::Link;
+use motus_clock::{ClockMutex, ClockMutexGuard, SharedClock, SystemClock};
 use motus_wire::{Scanner, Stream, StreamEvent};
 use std::collections::BTreeMap;
-use std::sync::{Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 /// Bus master settings.
@@ -86,9 +91,9 @@ struct Counters {
 }
 
 impl Counters {
-    fn new() -> Self {
+    fn new(since: Instant) -> Self {
         Counters {
-            since: Instant::now(),
+            since,
             devices: BTreeMap::new(),
             bytes_tx: 0,
             bytes_rx: 0,
@@ -101,25 +106,38 @@ impl Counters {
 /// The master of one line. Shared between threads (`Arc<BusMaster>`); each transaction
 /// holds the line exclusively.
 pub struct BusMaster {
-    inner: Mutex<Inner>,
+    inner: ClockMutex<Inner>,
     counters: Mutex<Counters>,
     config: BusConfig,
     line: crate::LineSettings,
     describe: String,
+    clock: SharedClock,
 }
 
 impl BusMaster {
-    /// A master on `link`.
+    /// A master on `link`, on the system clock.
     pub fn new(link: Box<dyn Link>, config: BusConfig) -> Self {
+        Self::with_clock(link, config, SystemClock::shared())
+    }
+
+    /// A master on `link` whose time-outs and statistics are on `clock` (a virtual clock
+    /// for a test with an in-process [`crate::SimLink`] on the same clock).
+    pub fn with_clock(link: Box<dyn Link>, config: BusConfig, clock: SharedClock) -> BusMaster {
         let line = link.line();
         let describe = link.describe();
         BusMaster {
-            inner: Mutex::new(Inner { link }),
-            counters: Mutex::new(Counters::new()),
+            inner: ClockMutex::new(Inner { link }, Arc::clone(&clock)),
+            counters: Mutex::new(Counters::new(clock.now())),
             config,
             line,
             describe,
+            clock,
         }
+    }
+
+    /// The clock of the time-outs and statistics.
+    pub fn clock(&self) -> &SharedClock {
+        &self.clock
     }
 
     /// The configuration.
@@ -142,8 +160,11 @@ impl BusMaster {
         self.line.wire_time(tx + rx) + self.config.margin
     }
 
-    fn lock_inner(&self) -> MutexGuard<'_, Inner> {
-        self.inner.lock().unwrap_or_else(|p| p.into_inner())
+    /// Takes the line; while another thread holds it, this one waits on the clock (a
+    /// threaded virtual clock moves time for the holder, and hands the line over before it
+    /// moves time again: [`ClockMutex`]).
+    fn lock_inner(&self) -> ClockMutexGuard<'_, Inner> {
+        self.inner.lock()
     }
 
     fn lock_counters(&self) -> MutexGuard<'_, Counters> {
@@ -176,11 +197,12 @@ impl BusMaster {
             }
             tx += request.bytes.len() as u64;
             let mut replies = Stream::new(scanner);
-            let mut deadline = Instant::now() + timeout;
+            let mut deadline = self.clock.now() + timeout;
             let mut chunk = [0u8; 256];
             let mut late_reads = 0;
             'attempt: loop {
-                let wait = deadline.saturating_duration_since(Instant::now());
+                let before = self.clock.now();
+                let wait = deadline.saturating_duration_since(before);
                 if wait.is_zero() {
                     // Past the deadline, what has already arrived is still read (without
                     // waiting) before this is called a time-out: when the host held this
@@ -202,6 +224,11 @@ impl BusMaster {
                     dev.timeouts += 1;
                     break;
                 }
+                if n == 0 && self.clock.now() == before {
+                    // The link waited without moving the clock (a real link on a virtual
+                    // clock): the wait is over, so is the time on the clock.
+                    self.clock.sleep_until(before + wait);
+                }
                 rx += n as u64;
                 replies.push(chunk.get(..n).unwrap_or(&[]));
                 while let Some(event) = replies.next_event() {
@@ -214,7 +241,7 @@ impl BusMaster {
                         StreamEvent::Corrupt(_) => {
                             dev.corrupt_frames += 1;
                             // The reply was damaged: retry as soon as the line is idle.
-                            deadline = deadline.min(Instant::now() + idle_gap);
+                            deadline = deadline.min(self.clock.now() + idle_gap);
                         }
                         StreamEvent::Garbage { bytes } => garbage += bytes as u64,
                     }
@@ -260,7 +287,7 @@ impl BusMaster {
             add(&mut totals, d);
         }
         BusStats {
-            window: c.since.elapsed(),
+            window: self.clock.elapsed(c.since),
             totals,
             bytes_tx: c.bytes_tx,
             bytes_rx: c.bytes_rx,
@@ -277,7 +304,7 @@ impl BusMaster {
 
     /// Restarts the statistics window.
     pub fn reset_stats(&self) {
-        *self.lock_counters() = Counters::new();
+        *self.lock_counters() = Counters::new(self.clock.now());
     }
 }
 
@@ -296,15 +323,18 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
     use crate::link::LineSettings;
+    use motus_clock::{Clock, VirtualClock};
     use motus_wire::Scan;
     use std::io;
 
     /// A link whose answer arrives in time, but whose reader is "descheduled": the first
-    /// waiting read returns nothing only after the whole time-out (and then some) passed.
+    /// waiting read returns nothing only after the whole time-out (and then some) passed
+    /// on the clock. Other reads return at once without moving the clock.
     struct LateWakeLink {
         answer: Vec<u8>,
         waited: bool,
         answered: bool,
+        clock: VirtualClock,
     }
 
     impl Link for LateWakeLink {
@@ -314,7 +344,7 @@ mod tests {
         fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
             if !self.waited && !timeout.is_zero() {
                 self.waited = true;
-                std::thread::sleep(timeout + Duration::from_millis(5));
+                self.clock.sleep(timeout + Duration::from_millis(5));
                 return Ok(0);
             }
             if self.waited && !self.answered {
@@ -352,8 +382,10 @@ mod tests {
 
     #[test]
     fn an_answer_already_received_when_the_reader_wakes_late_is_not_a_time_out() {
-        let link = LateWakeLink { answer: vec![7, 8], waited: false, answered: false };
-        let bus = BusMaster::new(Box::new(link), BusConfig { margin: Duration::from_millis(2), retries: 0 });
+        let clock = VirtualClock::new();
+        let link = LateWakeLink { answer: vec![7, 8], waited: false, answered: false, clock: clock.clone() };
+        let config = BusConfig { margin: Duration::from_millis(2), retries: 0 };
+        let bus = BusMaster::with_clock(Box::new(link), config, clock.shared());
         let req = Request { device: 7, bytes: &[7], reply_len: 2, idempotent: true };
         assert_eq!(bus.transact(&req, &Pairs, |f| *f == 7), Ok(7));
         let d = bus.device_stats(7);
@@ -361,11 +393,18 @@ mod tests {
     }
 
     #[test]
-    fn nothing_received_by_the_deadline_is_a_time_out() {
-        let link = LateWakeLink { answer: vec![], waited: true, answered: true };
-        let bus = BusMaster::new(Box::new(link), BusConfig { margin: Duration::from_millis(2), retries: 1 });
+    fn nothing_received_by_the_deadline_is_a_time_out_on_the_clock() {
+        // The link returns at once without moving the clock (a real link on a virtual
+        // clock): the master moves the clock to the deadline.
+        let clock = VirtualClock::new();
+        let link = LateWakeLink { answer: vec![], waited: true, answered: true, clock: clock.clone() };
+        let config = BusConfig { margin: Duration::from_millis(2), retries: 1 };
+        let bus = BusMaster::with_clock(Box::new(link), config, clock.shared());
+        let t0 = clock.now();
         let req = Request { device: 3, bytes: &[3], reply_len: 2, idempotent: true };
         assert!(matches!(bus.transact(&req, &Pairs, |_| true), Err(BusError::Timeout { attempts: 2, .. })));
         assert_eq!(bus.device_stats(3).timeouts, 2);
+        assert_eq!(clock.elapsed(t0), bus.timeout_for(1, 2) * 2);
+        assert_eq!(bus.stats().window, bus.timeout_for(1, 2) * 2, "statistics on the clock");
     }
 }

@@ -95,6 +95,16 @@ impl<L: Link> FaultInjector<L> {
     pub fn stats(&self) -> FaultStats {
         self.stats
     }
+
+    /// The wrapped link.
+    pub fn inner(&self) -> &L {
+        &self.inner
+    }
+
+    /// The wrapped link, mutably.
+    pub fn inner_mut(&mut self) -> &mut L {
+        &mut self.inner
+    }
 }
 
 /// Replaces each byte of `bytes` with probability `rate` by a different one; returns how many.

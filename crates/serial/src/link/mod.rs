@@ -26,6 +26,7 @@ pub mod framed;
 pub mod paced;
 pub mod pty;
 pub mod serial_port;
+pub mod sim;
 pub mod trace;
 
 use std::io;
@@ -106,6 +107,30 @@ macro_rules! link_behind {
 
 link_behind!(Box<L>);
 link_behind!(&mut L);
+
+/// A shared link is a link: the owner of the other handle can still reach it (e.g. a test
+/// that gave a [`sim::SimLink`] to a bus master and reads its statistics).
+impl<L: Link + ?Sized> Link for std::sync::Arc<std::sync::Mutex<L>> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        lock(self).write_all(bytes)
+    }
+    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        lock(self).read(buf, timeout)
+    }
+    fn discard_input(&mut self) -> io::Result<()> {
+        lock(self).discard_input()
+    }
+    fn line(&self) -> LineSettings {
+        lock(self).line()
+    }
+    fn describe(&self) -> String {
+        lock(self).describe()
+    }
+}
+
+fn lock<L: ?Sized>(link: &std::sync::Mutex<L>) -> std::sync::MutexGuard<'_, L> {
+    link.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
 
 #[cfg(test)]
 mod tests {
