@@ -199,17 +199,20 @@ impl Monitor {
     }
 
     /// Reads frames from `link` and calls `on_cycle` for every cycle until `on_cycle` breaks or
-    /// `stop` is set (checked at least every 50 ms).
+    /// `stop` is set (checked at least every 50 ms of the link's time). Frame times count from
+    /// the first frame's (on the link's clock, virtual on a [`crate::transport::MemHub`] made
+    /// with one).
     pub fn run(
         &mut self,
         link: &dyn EthLink,
         stop: &AtomicBool,
         mut on_cycle: impl FnMut(&CycleSample) -> ControlFlow<()>,
     ) -> io::Result<MonitorStats> {
-        let start = Instant::now();
+        let mut start: Option<Instant> = None;
         let mut buf = vec![0u8; MAX_FRAME];
         while !stop.load(Ordering::Relaxed) {
             let Some((n, at)) = link.recv(&mut buf, Duration::from_millis(50))? else { continue };
+            let start = *start.get_or_insert(at);
             let at_ns = u64::try_from(at.saturating_duration_since(start).as_nanos()).unwrap_or(u64::MAX);
             if let Some(s) = self.push(at_ns, buf.get(..n).unwrap_or(&[])) {
                 if on_cycle(&s).is_break() {

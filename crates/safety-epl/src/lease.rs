@@ -3,6 +3,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use motus_clock::{SharedClock, SystemClock};
 use motus_epl::EthLink;
 use motus_epl_protocol::{EplFrame, MacAddr, Message, SafetyLease, BROADCAST_NODE_ID};
 use motus_safety::{Lease, StopError, StopTarget};
@@ -21,6 +22,7 @@ pub struct EplLeaseTarget {
     fingerprint: [u8; 8],
     seq: u16,
     buf: Vec<u8>,
+    clock: SharedClock,
     /// Time the last revoke left (after `send` returned).
     pub last_stop_sent: Option<Instant>,
 }
@@ -45,8 +47,17 @@ impl EplLeaseTarget {
             fingerprint,
             seq: 0,
             buf: Vec::with_capacity(64),
+            clock: SystemClock::shared(),
             last_stop_sent: None,
         }
+    }
+
+    /// Takes the time of renewals and revokes from `clock` (the supervisor's; `origin` is an
+    /// instant of it) instead of the system clock.
+    #[must_use]
+    pub fn with_clock(mut self, clock: SharedClock) -> Self {
+        self.clock = clock;
+        self
     }
 
     fn send(&mut self, lease: SafetyLease) -> Result<(), StopError> {
@@ -73,13 +84,13 @@ impl StopTarget for EplLeaseTarget {
 
     fn quick_stop(&mut self) -> Result<(), StopError> {
         let r = self.send(SafetyLease::revoke(self.seq, self.fingerprint));
-        self.last_stop_sent = Some(Instant::now());
+        self.last_stop_sent = Some(self.clock.now());
         self.last_renewal = None;
         r
     }
 
     fn renew(&mut self, lease: &Lease) -> Result<(), StopError> {
-        let now = Instant::now();
+        let now = self.clock.now();
         if self.last_renewal.is_some_and(|t| now.duration_since(t) < self.renew_every) {
             return Ok(());
         }

@@ -6,6 +6,12 @@
 //! [`Fanout`]: the first unsafe decision quick-stops every target before `on_frame` returns.
 //! Between frames, [`OnlineSupervisor::tick`] stops the targets when the last lease expired
 //! (no frames: stale data is unsafe, and a silent segment must not keep drives running).
+//!
+//! Time comes from a [`motus_clock::Clock`] ([`OnlineSupervisor::with_clock`]; the system
+//! clock by default): the reaction time, the lease checks between frames, and the waits of
+//! [`OnlineSupervisor::run`] on its link. On a threaded [`motus_clock::VirtualClock`] shared
+//! with an in-process segment ([`motus_epl::transport::MemHub::with_clock`]), the loop that
+//! `motus safety run` and the station run is tested on virtual time.
 
 use motus_realtime::MailboxReceiver;
 use std::io;
@@ -13,6 +19,7 @@ use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use motus_clock::{SharedClock, SystemClock};
 use motus_epl::sim::Percentiles;
 use motus_epl::EthLink;
 use motus_epl_protocol::{EplFrame, Message};
@@ -125,6 +132,7 @@ pub struct OnlineSupervisor {
     reaction: ReactionStats,
     frames: u64,
     integrity_checks: u64,
+    clock: SharedClock,
 }
 
 impl OnlineSupervisor {
@@ -152,7 +160,20 @@ impl OnlineSupervisor {
             reaction: ReactionStats::default(),
             frames: 0,
             integrity_checks: 0,
+            clock: SystemClock::shared(),
         }
+    }
+
+    /// Runs on `clock` (the link's and the lease target's; `origin` is an instant of it).
+    #[must_use]
+    pub fn with_clock(mut self, clock: SharedClock) -> Self {
+        self.clock = clock;
+        self
+    }
+
+    /// The clock.
+    pub fn clock(&self) -> &SharedClock {
+        &self.clock
     }
 
     /// Installs new rules (an administrator's approved change): every target is stopped
@@ -252,7 +273,7 @@ impl OnlineSupervisor {
         };
         let decision = self.supervisor.evaluate(&input);
         let report = self.fanout.apply(decision);
-        let sent = Instant::now();
+        let sent = self.clock.now();
         let safe = decision.safe_to_run();
         let was = self.safe.replace(safe);
         if was == Some(safe) && !report.stopped {
@@ -353,9 +374,10 @@ impl OnlineSupervisor {
     /// or checks the lease when none came ([`OnlineSupervisor::tick`]). Every event goes to
     /// `on_event`, and [`ServeEvent::Pass`] ends every pass (where a caller publishes its
     /// state: it must not block, the lease is renewed from this thread). The thread is
-    /// promoted to the cyclic real-time class. A link error stops every target and is
-    /// returned; on `stop` the targets are left as they are (the caller stops them, or lets
-    /// the lease expire).
+    /// promoted to the cyclic real-time class and takes part in the supervisor's clock (start
+    /// it with [`motus_clock::spawn`] on a threaded virtual clock). A link error stops every
+    /// target and is returned; on `stop` the targets are left as they are (the caller stops
+    /// them, or lets the lease expire).
     ///
     /// # Errors
     /// The link failed.
@@ -370,6 +392,7 @@ impl OnlineSupervisor {
         // The lease must be renewed every cycle: this loop is cyclic work (a no-op unless the
         // binary set a real-time policy).
         motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
+        self.clock.join_thread();
         let mut buf = vec![0u8; motus_epl::transport::MAX_FRAME];
         while !stop.load(Ordering::Relaxed) {
             for command in commands.try_take() {
@@ -382,9 +405,9 @@ impl OnlineSupervisor {
             let event = match link.recv(&mut buf, poll) {
                 Ok(Some((n, at))) => {
                     let e = self.on_frame(buf.get(..n).unwrap_or(&[]), at);
-                    e.or_else(|| self.tick(Instant::now()))
+                    e.or_else(|| self.tick(self.clock.now()))
                 }
-                Ok(None) => self.tick(Instant::now()),
+                Ok(None) => self.tick(self.clock.now()),
                 Err(e) => {
                     tracing::error!(error = %e, "safety supervisor: link failed, stopping every drive");
                     self.stop_all();

@@ -3,14 +3,17 @@
 //!
 //! Reading and hashing the files takes milliseconds: never on the supervisor's thread, whose
 //! lease is renewed every cycle. `motus safety run` and the station's juggler both start one.
+//! Its period runs on a [`motus_clock::Clock`] ([`IntegrityWatcher::with_clock`]; the system
+//! clock by default).
 
 use motus_realtime::MailboxSender;
 use std::io;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
+use motus_clock::{SharedClock, SystemClock};
 use motus_safety::{ConfigFiles, RuleSet};
 
 use crate::inputs::{InputError, InputMap};
@@ -28,6 +31,7 @@ pub struct IntegrityWatcher {
     files: ConfigFiles,
     every: Duration,
     reload: Option<(RuleSet, InputsFor)>,
+    clock: SharedClock,
 }
 
 impl std::fmt::Debug for IntegrityWatcher {
@@ -43,7 +47,14 @@ impl std::fmt::Debug for IntegrityWatcher {
 impl IntegrityWatcher {
     /// A watcher of `files`, checking them every `every`.
     pub fn new(files: ConfigFiles, every: Duration) -> Self {
-        Self { files, every, reload: None }
+        Self { files, every, reload: None, clock: SystemClock::shared() }
+    }
+
+    /// Counts the period on `clock` (the supervisor's) instead of the system clock.
+    #[must_use]
+    pub fn with_clock(mut self, clock: SharedClock) -> Self {
+        self.clock = clock;
+        self
     }
 
     /// Also installs approved rules that differ from the `running` ones (a new approval of
@@ -89,7 +100,8 @@ impl IntegrityWatcher {
     }
 
     /// Starts the thread `name`: a check now, then one every period, until `stop` is set or
-    /// the supervisor's channel closes.
+    /// the supervisor's channel closes. The thread takes part in the watcher's clock
+    /// ([`motus_clock::spawn`]) and looks at `stop` at least every 50 ms of it.
     ///
     /// # Errors
     /// The thread cannot be spawned.
@@ -99,12 +111,13 @@ impl IntegrityWatcher {
         commands: MailboxSender<Command>,
         stop: Arc<AtomicBool>,
     ) -> io::Result<JoinHandle<()>> {
-        std::thread::Builder::new().name(name.into()).spawn(move || {
-            let mut next = Instant::now();
+        let clock = Arc::clone(&self.clock);
+        motus_clock::spawn(&clock, std::thread::Builder::new().name(name.into()), move || {
+            let mut next = self.clock.now();
             while !stop.load(Ordering::Relaxed) {
-                let now = Instant::now();
+                let now = self.clock.now();
                 if now < next {
-                    std::thread::sleep((next - now).min(STOP_POLL));
+                    self.clock.sleep((next - now).min(STOP_POLL));
                     continue;
                 }
                 next = now + self.every;

@@ -16,6 +16,11 @@ pub struct DriveParams {
     /// ([`motus_epl_protocol::SafetyLease`]) no longer ago than this: a revoke, or no renewal
     /// within this time, makes it quick-stop. `None`: leases are ignored.
     pub lease_timeout: Option<std::time::Duration>,
+    /// When set, a drive beyond PRE_OPERATIONAL_1 whose SoC comes this long or longer after
+    /// the previous one (it lost SoCs: its cable was pulled, the MN stopped) has a cycle error
+    /// and drops to PRE_OPERATIONAL_1, to be booted again by the MN (`specs/powerlink.md` §5,
+    /// "CN loss of SoC"; object 0x1C14). `None`: never.
+    pub soc_loss_tolerance: Option<std::time::Duration>,
 }
 
 impl Default for DriveParams {
@@ -28,6 +33,7 @@ impl Default for DriveParams {
             brake_decel: 1_600_000.0,
             initial_position: 0.0,
             lease_timeout: None,
+            soc_loss_tolerance: None,
         }
     }
 }

@@ -2,6 +2,10 @@
 //! NMT state machine driven by SoA/SoC and NMT commands, IdentResponse / StatusResponse on
 //! invitation, PRes on its PReq (RD only in OPERATIONAL), and an [`AxisModel`] stepped once per
 //! SoC with the RelativeTime difference as time step.
+//!
+//! A CN has no clock of its own: time is the reception time of each frame (the link's, virtual
+//! on a [`crate::transport::MemHub`] made with a virtual clock), for its safety lease and its
+//! loss of SoC. While unplugged ([`super::Segment::unplug`]) it receives and sends nothing.
 
 use std::net::Ipv4Addr;
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
@@ -24,6 +28,14 @@ use crate::transport::{EthLink, FrameHandler, MAX_FRAME};
 #[derive(Debug)]
 pub(crate) struct CnShared {
     pub(crate) state: AtomicU8,
+    /// Set while the CN's cable is pulled: it receives and sends nothing.
+    pub(crate) unplugged: AtomicBool,
+}
+
+impl CnShared {
+    pub(crate) fn new() -> Self {
+        Self { state: AtomicU8::new(NmtState::NotActive.raw()), unplugged: AtomicBool::new(false) }
+    }
 }
 
 pub(crate) struct Cn {
@@ -37,6 +49,9 @@ pub(crate) struct Cn {
     lease_timeout: Option<Duration>,
     /// Expiry of the newest safe lease (`None`: none yet, or revoked).
     lease_until: Option<Instant>,
+    soc_loss_tolerance: Option<Duration>,
+    /// Reception time of the last SoC.
+    last_soc_at: Option<Instant>,
     shared: Arc<CnShared>,
     out: Vec<u8>,
 }
@@ -55,6 +70,8 @@ impl Cn {
             last_relative_us: None,
             lease_timeout: params.lease_timeout,
             lease_until: None,
+            soc_loss_tolerance: params.soc_loss_tolerance,
+            last_soc_at: None,
             shared,
             out: Vec::with_capacity(MAX_FRAME),
         }
@@ -80,7 +97,8 @@ impl Cn {
         }
     }
 
-    fn actual(&self) -> Actual {
+    /// The PRes payload at `now`.
+    fn actual(&self, now: Instant) -> Actual {
         let mut status = 0;
         if self.setpoint.control & CONTROL_ENABLE != 0 {
             status |= STATUS_ENABLED;
@@ -91,7 +109,7 @@ impl Cn {
         if self.axis.speed() == 0.0 {
             status |= STATUS_STANDSTILL;
         }
-        if self.lease_stop(Instant::now()) {
+        if self.lease_stop(now) {
             status |= STATUS_LEASE_STOP;
         }
         status |= STATUS_HOMED;
@@ -174,14 +192,27 @@ impl Cn {
                 return;
             }
         }
-        self.handle(frame);
+        self.handle(frame, at);
     }
 
-    /// Handles one received frame.
-    pub(crate) fn handle(&mut self, frame: &EplFrame) {
+    /// Handles one received frame (received at `at`).
+    fn handle(&mut self, frame: &EplFrame, at: Instant) {
         match &frame.message {
             Message::Soc(soc) => {
+                let lost_socs = self.soc_loss_tolerance.is_some_and(|tolerance| {
+                    self.last_soc_at.is_some_and(|last| at.saturating_duration_since(last) >= tolerance)
+                });
+                self.last_soc_at = Some(at);
                 match self.state {
+                    NmtState::PreOperational2 | NmtState::ReadyToOperate | NmtState::Operational
+                        if lost_socs =>
+                    {
+                        tracing::warn!(
+                            node = self.node,
+                            "loss of SoC: cycle error, back to PRE_OPERATIONAL_1"
+                        );
+                        self.set_state(NmtState::PreOperational1);
+                    }
                     NmtState::NotActive => self.set_state(NmtState::PreOperational1),
                     NmtState::PreOperational1 => self.set_state(NmtState::PreOperational2),
                     _ => {}
@@ -192,8 +223,7 @@ impl Cn {
                 self.last_relative_us = Some(soc.relative_time);
                 let enabled =
                     self.setpoint.control & CONTROL_ENABLE != 0 && self.state == NmtState::Operational;
-                let quick_stop =
-                    self.setpoint.control & CONTROL_QUICK_STOP != 0 || self.lease_stop(Instant::now());
+                let quick_stop = self.setpoint.control & CONTROL_QUICK_STOP != 0 || self.lease_stop(at);
                 let target = if enabled { f64::from(self.setpoint.target) } else { self.axis.position() };
                 self.axis.step(dt, target, quick_stop || !enabled && self.axis.speed() != 0.0);
             }
@@ -225,7 +255,7 @@ impl Cn {
                     flags: if operational { Flags::RD } else { Flags::empty() },
                     pr_rs: PrRs::default(),
                     pdo_version: 0,
-                    payload: self.actual().encode(),
+                    payload: self.actual(at).encode(),
                     reserved: 0,
                 };
                 self.send(BROADCAST_NODE_ID, Message::PRes(pres));
@@ -265,6 +295,9 @@ impl Cn {
     pub(crate) fn into_handler(mut self) -> FrameHandler {
         self.set_state(NmtState::NotActive);
         Box::new(move |bytes, at| {
+            if self.shared.unplugged.load(Ordering::Relaxed) {
+                return;
+            }
             if let Ok(frame) = EplFrame::decode(bytes) {
                 self.handle_at(&frame, at);
             }

@@ -13,15 +13,24 @@
 //! * Boot-up continues from the CN states seen in PRes: all CNs PRE_OPERATIONAL_2 ->
 //!   NMTEnableReadyToOperate to each; all READY_TO_OPERATE -> MN READY_TO_OPERATE and
 //!   NMTStartNode to each; all OPERATIONAL -> MN OPERATIONAL, the motion program starts.
-//!   Commands are repeated every 20 cycles until the CN's state follows.
-//! * Timing: sleep until [`MnConfig::busy_wait`] before the deadline (receiving stray frames
-//!   meanwhile), then spin; the lateness of each SoC after its deadline is recorded. Thread
-//!   timer slack is set to 1 ns. A cycle whose work overruns the next deadline skips it.
+//!   Commands are repeated every 20 cycles until the CN's state follows. Once the MN is
+//!   READY_TO_OPERATE or OPERATIONAL, a CN that comes back in an earlier state (after a loss of
+//!   SoC, or a reset) is booted on its own the same way while the others run.
+//! * Loss: a CN whose PRes is missed [`MnConfig::lost_after`] times in a row is lost: no more
+//!   PReq; the async slot invites it with an IdentRequest (after any NMT command) until it
+//!   answers, then it is polled again. Both are recorded ([`super::MnStats::cn_events`]).
+//! * Timing, on the segment's clock ([`super::SegmentBuilder::clock`]): sleep until
+//!   [`MnConfig::busy_wait`] before the deadline (receiving stray frames meanwhile), then spin
+//!   (on the system clock only); the lateness of each SoC after its deadline is recorded.
+//!   Thread timer slack is set to 1 ns. A cycle whose work overruns the next deadline skips it.
+//!   On a virtual clock every wait is a wait on the clock, so the cycle is exact.
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use motus_clock::SharedClock;
 
 use motus_epl_protocol::{
     Asnd, EplFrame, Flags, MacAddr, Message, NetTime, NmtCommand, NmtCommandId, NmtState, PReq,
@@ -30,7 +39,7 @@ use motus_epl_protocol::{
 
 use super::pdo::{SetPoint, CONTROL_ENABLE, CONTROL_QUICK_STOP};
 use super::program::MotionProgram;
-use super::stats::MnStats;
+use super::stats::{CnChange, MnStats};
 use crate::transport::{EthLink, MAX_FRAME};
 
 /// Timing of the Managing Node.
@@ -42,15 +51,20 @@ pub struct MnConfig {
     pub pres_timeout: Duration,
     /// How long to wait for an ASnd after a SoA invitation (capped by the next deadline).
     pub async_timeout: Duration,
-    /// Spin (instead of sleeping) for this long before each deadline.
+    /// Spin (instead of sleeping) for this long before each deadline (on the system clock
+    /// only: on another clock the MN sleeps on it).
     pub busy_wait: Duration,
     /// SoAs without invitation at the start of PreOp1 (openPOWERLINK: 10).
     pub preop1_start_cycles: u32,
     /// In OPERATIONAL, one StatusRequest every this many cycles (0: never).
     pub status_request_every: u32,
     /// Poll the link without sleeping while waiting for a PRes (saves the thread's wake-up
-    /// latency, tens of microseconds on a busy machine, at the cost of one busy core).
+    /// latency, tens of microseconds on a busy machine, at the cost of one busy core; on the
+    /// system clock only).
     pub spin_for_pres: bool,
+    /// A CN whose PRes is missed this many times in a row is lost (see the module
+    /// documentation); 0: never (the default: a CN is polled whatever it answers).
+    pub lost_after: u32,
 }
 
 impl Default for MnConfig {
@@ -63,6 +77,7 @@ impl Default for MnConfig {
             preop1_start_cycles: 10,
             status_request_every: 1000,
             spin_for_pres: false,
+            lost_after: 0,
         }
     }
 }
@@ -80,11 +95,17 @@ struct CnSlot {
     node: u8,
     mac: Option<MacAddr>,
     state: NmtState,
-    last_command_cycle: Option<u64>,
+    /// The last NMT command queued for the CN, and the cycle it was queued in.
+    last_command: Option<(u64, NmtCommandId)>,
+    /// PRes missed in a row.
+    missed: u32,
+    /// Lost (see [`MnConfig::lost_after`]) and not identified again yet.
+    lost: bool,
 }
 
 pub(crate) struct Mn {
     link: Arc<dyn EthLink>,
+    clock: SharedClock,
     mac: MacAddr,
     config: MnConfig,
     cns: Vec<CnSlot>,
@@ -95,7 +116,10 @@ pub(crate) struct Mn {
     cycle_index: u64,
     reduced_index: u64,
     status_rr: usize,
+    ident_rr: usize,
     op_start: Option<Instant>,
+    /// The clock's time and the wall time when the MN started (NetTime of each SoC).
+    net_epoch: Option<(Instant, Duration)>,
     targets: Vec<i32>,
     out: Vec<u8>,
     buf: Vec<u8>,
@@ -104,6 +128,7 @@ pub(crate) struct Mn {
 impl Mn {
     pub(crate) fn new(
         link: Arc<dyn EthLink>,
+        clock: SharedClock,
         config: MnConfig,
         nodes: &[(u8, i32)],
         program: Option<Box<dyn MotionProgram>>,
@@ -112,6 +137,7 @@ impl Mn {
         Self {
             mac: link.mac(),
             link,
+            clock,
             config,
             cns: nodes
                 .iter()
@@ -119,7 +145,9 @@ impl Mn {
                     node,
                     mac: None,
                     state: NmtState::NotActive,
-                    last_command_cycle: None,
+                    last_command: None,
+                    missed: 0,
+                    lost: false,
                 })
                 .collect(),
             state: NmtState::PreOperational1,
@@ -129,7 +157,9 @@ impl Mn {
             cycle_index: 0,
             reduced_index: 0,
             status_rr: 0,
+            ident_rr: 0,
             op_start: None,
+            net_epoch: None,
             targets: nodes.iter().map(|&(_, p)| p).collect(),
             out: Vec::with_capacity(MAX_FRAME),
             buf: vec![0; MAX_FRAME],
@@ -157,7 +187,7 @@ impl Mn {
 
     /// Receives one frame until `deadline`; returns it decoded, handling ASnd bookkeeping.
     fn recv_until(&mut self, deadline: Instant) -> Option<(EplFrame, Instant)> {
-        let now = Instant::now();
+        let now = self.clock.now();
         if now >= deadline {
             return None;
         }
@@ -166,7 +196,7 @@ impl Mn {
                 if let Some(r) = self.link.recv(&mut self.buf, Duration::ZERO).ok()? {
                     break r;
                 }
-                if Instant::now() >= deadline {
+                if self.clock.now() >= deadline {
                     return None;
                 }
                 std::hint::spin_loop();
@@ -186,7 +216,8 @@ impl Mn {
         }
     }
 
-    /// Learns MACs and states from IdentResponse, StatusResponse and PRes.
+    /// Learns MACs and states from IdentResponse, StatusResponse and PRes; a lost CN that
+    /// identifies itself is found.
     fn observe(&mut self, frame: &EplFrame) {
         let (state, learn_mac) = match &frame.message {
             Message::Asnd(Asnd::IdentResponse(r)) => (r.nmt_state, true),
@@ -194,21 +225,29 @@ impl Mn {
             Message::PRes(p) => (p.nmt_state, false),
             _ => return,
         };
-        if let Some(cn) = self.cns.iter_mut().find(|c| c.node == frame.src_node) {
-            cn.state = state;
-            if learn_mac {
-                cn.mac = Some(frame.ethernet.src);
-            }
+        let Some(cn) = self.cns.iter_mut().find(|c| c.node == frame.src_node) else { return };
+        cn.state = state;
+        if !learn_mac {
+            return;
+        }
+        cn.mac = Some(frame.ethernet.src);
+        if cn.lost {
+            cn.lost = false;
+            cn.missed = 0;
+            let node = cn.node;
+            tracing::info!(node, state = %state, "CN found again");
+            self.stats().cn_event(node, CnChange::Found);
         }
     }
 
     fn sleep_until(&mut self, deadline: Instant) {
         let wake = deadline.checked_sub(self.config.busy_wait).unwrap_or(deadline);
-        while Instant::now() < wake {
+        while self.clock.now() < wake {
             // Stray or late frames are observed and dropped.
             let _ = self.recv_until(wake);
         }
-        while Instant::now() < deadline {
+        // Spinning (busy_wait is zero on a clock other than the system's).
+        while self.clock.now() < deadline {
             std::hint::spin_loop();
         }
     }
@@ -219,12 +258,14 @@ impl Mn {
             tracing::debug!("timer slack: {e}");
         }
         self.shared.state.store(self.state.raw(), Ordering::Relaxed);
-        let epoch = Instant::now() + self.config.cycle;
+        let start = self.clock.now();
+        self.net_epoch = Some((start, SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default()));
+        let epoch = start + self.config.cycle;
         let mut deadline = epoch;
         let mut first_soc: Option<Instant> = None;
         while !stop.load(Ordering::Relaxed) {
             self.sleep_until(deadline);
-            let late = Instant::now().saturating_duration_since(deadline);
+            let late = self.clock.now().saturating_duration_since(deadline);
             if self.state == NmtState::PreOperational1 {
                 self.reduced_cycle(deadline + self.config.cycle);
             } else {
@@ -244,10 +285,12 @@ impl Mn {
                 );
             }
             deadline += self.config.cycle;
-            let now = Instant::now();
-            if now >= deadline {
+            let now = self.clock.now();
+            // Past the next deadline (work that ends exactly on it, as a wait capped by it does
+            // on a virtual clock, is on time).
+            if now > deadline {
                 self.stats().overruns += 1;
-                while deadline <= now {
+                while deadline < now {
                     deadline += self.config.cycle;
                 }
             }
@@ -287,8 +330,8 @@ impl Mn {
 
     fn wait_asnd(&mut self, node: u8, next_deadline: Instant) {
         let cap = next_deadline.checked_sub(self.config.busy_wait).unwrap_or(next_deadline);
-        let until = (Instant::now() + self.config.async_timeout).min(cap);
-        while Instant::now() < until {
+        let until = (self.clock.now() + self.config.async_timeout).min(cap);
+        while self.clock.now() < until {
             if let Some((f, _)) = self.recv_until(until) {
                 if matches!(f.message, Message::Asnd(_)) && f.src_node == node {
                     return;
@@ -298,7 +341,10 @@ impl Mn {
     }
 
     fn full_cycle(&mut self, deadline: Instant, since_first_soc: Duration, next_deadline: Instant) {
-        let wall = SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default();
+        // NetTime: the wall time of the deadline, counted on the segment's clock from the start.
+        let wall = self
+            .net_epoch
+            .map_or(Duration::ZERO, |(start, wall)| wall + deadline.saturating_duration_since(start));
         let soc = Soc {
             flags: Flags::empty(),
             net_time: NetTime { seconds: wall.as_secs() as u32, nanoseconds: wall.subsec_nanos() },
@@ -328,7 +374,7 @@ impl Mn {
                 payload: sp.encode().to_vec(),
                 ..PReq::default()
             };
-            let sent = Instant::now();
+            let sent = self.clock.now();
             self.send(mac, node, Message::PReq(preq));
             self.wait_pres(i, node, sent, operational);
         }
@@ -344,6 +390,9 @@ impl Mn {
                 Some((f, at)) => {
                     if let Message::PRes(pres) = &f.message {
                         if f.src_node == node {
+                            if let Some(cn) = self.cns.get_mut(index) {
+                                cn.missed = 0;
+                            }
                             if operational {
                                 let rtt = at.saturating_duration_since(sent).as_nanos();
                                 self.stats().pres_rtt_ns.push(u64::try_from(rtt).unwrap_or(u64::MAX));
@@ -358,12 +407,24 @@ impl Mn {
                         self.stats().pres_late += 1;
                     }
                 }
-                None if Instant::now() >= until => break,
+                None if self.clock.now() >= until => break,
                 None => {}
             }
         }
         if operational {
             *self.stats().pres_missed.entry(node).or_default() += 1;
+        }
+        let lost_after = self.config.lost_after;
+        let Some(cn) = self.cns.get_mut(index) else { return };
+        cn.missed = cn.missed.saturating_add(1);
+        if lost_after > 0 && cn.missed >= lost_after {
+            tracing::warn!(node, missed = cn.missed, "CN lost: no PRes {lost_after} times in a row");
+            cn.mac = None;
+            cn.lost = true;
+            cn.missed = 0;
+            cn.state = NmtState::NotActive;
+            cn.last_command = None;
+            self.stats().cn_event(node, CnChange::Lost);
         }
     }
 
@@ -374,6 +435,20 @@ impl Mn {
             let cmd = NmtCommand { command, data: Vec::new(), reserved: 0 };
             self.send(MacAddr::ASND, node, Message::Asnd(Asnd::NmtCommand(cmd)));
             return;
+        }
+        // A lost CN is invited to identify itself again, one per cycle in turn.
+        let n = self.cns.len();
+        let lost = (1..=n)
+            .map(|k| (self.ident_rr + k) % n.max(1))
+            .find(|&i| self.cns.get(i).is_some_and(|c| c.lost));
+        if let Some(i) = lost {
+            self.ident_rr = i;
+            if let Some(node) = self.cns.get(i).map(|c| c.node) {
+                let soa = Soa::new(self.state, RequestedService::IdentRequest, node);
+                self.send(MacAddr::SOA, BROADCAST_NODE_ID, Message::Soa(soa));
+                self.wait_asnd(node, next_deadline);
+                return;
+            }
         }
         let every = u64::from(self.config.status_request_every);
         let booting = self.state != NmtState::Operational;
@@ -393,13 +468,15 @@ impl Mn {
 
     fn boot_step(&mut self, deadline: Instant) {
         let all = |cns: &[CnSlot], s: NmtState| cns.iter().all(|c| c.state == s);
-        let (from, command) = match self.state {
+        // Whether CNs in READY_TO_OPERATE are started (else only PRE_OPERATIONAL_2 ones are
+        // enabled).
+        let start = match self.state {
             NmtState::PreOperational2 => {
                 if all(&self.cns, NmtState::ReadyToOperate) {
                     self.set_state(NmtState::ReadyToOperate);
                     return;
                 }
-                (NmtState::PreOperational2, NmtCommandId::EnableReadyToOperate)
+                false
             }
             NmtState::ReadyToOperate => {
                 if all(&self.cns, NmtState::Operational) {
@@ -407,15 +484,22 @@ impl Mn {
                     self.op_start = Some(deadline + self.config.cycle);
                     return;
                 }
-                (NmtState::ReadyToOperate, NmtCommandId::StartNode)
+                true
             }
+            NmtState::Operational => true,
             _ => return,
         };
         let cycle = self.cycle_index;
         for cn in &mut self.cns {
-            let due = cn.last_command_cycle.map_or(true, |c| cycle >= c + 20);
-            if cn.state == from && due {
-                cn.last_command_cycle = Some(cycle);
+            let command = match cn.state {
+                NmtState::PreOperational2 => NmtCommandId::EnableReadyToOperate,
+                NmtState::ReadyToOperate if start => NmtCommandId::StartNode,
+                _ => continue,
+            };
+            // A command is repeated every 20 cycles until the CN follows.
+            let due = cn.last_command.map_or(true, |(c, last)| last != command || cycle >= c + 20);
+            if cn.mac.is_some() && due {
+                cn.last_command = Some((cycle, command));
                 self.commands.push_back((cn.node, command));
             }
         }

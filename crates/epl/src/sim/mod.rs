@@ -4,6 +4,12 @@
 //! an in-process `mem://` segment, where a PReq is answered inside the MN's send), else on a
 //! receiving thread of its own.
 //!
+//! The segment runs on a clock ([`SegmentBuilder::clock`], the system clock by default). On a
+//! threaded [`motus_clock::VirtualClock`] shared with a [`crate::transport::MemHub`] made on
+//! it ([`crate::transport::MemHub::with_clock`]), the MN's cycle thread and every other thread
+//! of the test take part in the clock's time: the cycle, its time-outs and every figure of
+//! [`MnStats`] are exact, and seconds of cycles run in a fraction of that in wall time.
+//!
 //! ```no_run
 //! use std::sync::Arc;
 //! use std::time::Duration;
@@ -29,11 +35,12 @@ pub mod pdo;
 pub mod program;
 pub mod stats;
 
-use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, PoisonError};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
+use motus_clock::{SharedClock, SystemClock};
 use motus_epl_protocol::{NmtState, BROADCAST_NODE_ID, MN_NODE_ID};
 use thiserror::Error;
 
@@ -41,7 +48,7 @@ pub use axis::{AxisModel, DriveParams};
 pub use mn::MnConfig;
 pub use pdo::{Actual, SetPoint};
 pub use program::{CamAxis, CamProgram, MotionProgram, SetpointList};
-pub use stats::{MnStats, Percentiles};
+pub use stats::{CnChange, CnEvent, MnStats, Percentiles};
 
 use crate::transport::EthLink;
 
@@ -73,6 +80,7 @@ pub struct SegmentBuilder {
     config: MnConfig,
     program: Option<Box<dyn MotionProgram>>,
     spin_cns: bool,
+    clock: Option<SharedClock>,
 }
 
 impl SegmentBuilder {
@@ -114,6 +122,17 @@ impl SegmentBuilder {
         self
     }
 
+    /// Runs the segment on `clock` instead of the system clock: the MN's cycle, its time-outs
+    /// and its statistics, and the CNs' threads if any (an in-process segment on the same
+    /// clock: [`crate::transport::MemHub::with_clock`]). The segment never busy-waits on a
+    /// clock given here ([`MnConfig::busy_wait`], [`MnConfig::spin_for_pres`] and
+    /// [`SegmentBuilder::spin_cns`] are ignored): only the system clock, the default, moves
+    /// while a thread spins.
+    pub fn clock(mut self, clock: SharedClock) -> Self {
+        self.clock = Some(clock);
+        self
+    }
+
     /// The motion program run once OPERATIONAL (without one, drives hold their start position).
     pub fn program(mut self, program: Box<dyn MotionProgram>) -> Self {
         self.program = Some(program);
@@ -139,6 +158,16 @@ impl SegmentBuilder {
             }
             seen.push(*node);
         }
+        // Busy waiting only on the system clock (a virtual clock does not move while a thread
+        // spins).
+        let spinning_allowed = self.clock.is_none();
+        let clock = self.clock.unwrap_or_else(SystemClock::shared);
+        let mut config = self.config;
+        if !spinning_allowed {
+            config.busy_wait = Duration::ZERO;
+            config.spin_for_pres = false;
+        }
+        let spin_cns = self.spin_cns && spinning_allowed;
         let stop = Arc::new(AtomicBool::new(false));
         let mut threads = Vec::new();
         let mut cns = Vec::new();
@@ -146,10 +175,10 @@ impl SegmentBuilder {
         let mut spinning = Vec::new();
         let mut attached = Vec::new();
         for (node, link, params) in self.drives {
-            let shared = Arc::new(cn::CnShared { state: AtomicU8::new(NmtState::NotActive.raw()) });
+            let shared = Arc::new(cn::CnShared::new());
             let cn = cn::Cn::new(node, link, params, Arc::clone(&shared));
             let link = cn.link();
-            if self.spin_cns {
+            if spin_cns {
                 spinning.push((link, cn.into_handler()));
             } else {
                 match link.attach_receiver(cn.into_handler()) {
@@ -160,6 +189,7 @@ impl SegmentBuilder {
                         handler,
                         Arc::clone(&stop),
                         motus_realtime::ThreadClass::Simulator,
+                        &clock,
                     )?),
                 }
             }
@@ -177,12 +207,14 @@ impl SegmentBuilder {
             );
         }
         let mn_shared = Arc::new(mn::MnShared::default());
-        let mn = mn::Mn::new(mn_link, self.config, &nodes, self.program, Arc::clone(&mn_shared));
+        let mn =
+            mn::Mn::new(mn_link, Arc::clone(&clock), config, &nodes, self.program, Arc::clone(&mn_shared));
         let stop_mn = Arc::clone(&stop);
-        let started = std::thread::Builder::new().name("epl-mn".into()).spawn(move || {
-            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
-            mn.run(&stop_mn)
-        });
+        let started =
+            motus_clock::spawn(&clock, std::thread::Builder::new().name("epl-mn".into()), move || {
+                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
+                mn.run(&stop_mn)
+            });
         match started {
             Ok(t) => threads.push(t),
             Err(e) => {
@@ -193,7 +225,7 @@ impl SegmentBuilder {
                 return Err(e.into());
             }
         }
-        Ok(Segment { stop, threads, attached, mn: mn_shared, cns })
+        Ok(Segment { stop, threads, attached, mn: mn_shared, cns, clock })
     }
 }
 
@@ -205,6 +237,7 @@ pub struct Segment {
     attached: Vec<Arc<dyn EthLink>>,
     mn: Arc<mn::MnShared>,
     cns: Vec<(u8, Arc<cn::CnShared>)>,
+    clock: SharedClock,
 }
 
 impl Segment {
@@ -226,14 +259,29 @@ impl Segment {
             .map(|(_, s)| NmtState::from_raw(s.state.load(Ordering::Relaxed)))
     }
 
-    /// Waits until the MN is OPERATIONAL; false on time-out.
+    /// Pulls (`true`) or plugs back (`false`) the cable of CN `node`: while unplugged it
+    /// receives and sends nothing (a CN gone silent; see [`MnConfig::lost_after`] and
+    /// [`DriveParams::soc_loss_tolerance`] for what follows). False when there is no such CN.
+    pub fn unplug(&self, node: u8, unplugged: bool) -> bool {
+        let Some((_, cn)) = self.cns.iter().find(|(n, _)| *n == node) else { return false };
+        cn.unplugged.store(unplugged, Ordering::Relaxed);
+        true
+    }
+
+    /// The segment's clock.
+    pub fn clock(&self) -> &SharedClock {
+        &self.clock
+    }
+
+    /// Waits until the MN is OPERATIONAL, looking every 5 ms of the segment's clock; false on
+    /// time-out.
     pub fn wait_operational(&self, timeout: Duration) -> bool {
-        let end = Instant::now() + timeout;
-        while Instant::now() < end {
+        let end = self.clock.now() + timeout;
+        while self.clock.now() < end {
             if self.mn_state() == NmtState::Operational {
                 return true;
             }
-            std::thread::sleep(Duration::from_millis(5));
+            self.clock.sleep(Duration::from_millis(5));
         }
         self.mn_state() == NmtState::Operational
     }
@@ -262,7 +310,8 @@ impl Segment {
     fn shutdown(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
         for t in self.threads.drain(..) {
-            if t.join().is_err() {
+            // The thread runs on the segment's clock: time must move for it meanwhile.
+            if motus_clock::while_blocked(&*self.clock, || t.join()).is_err() {
                 tracing::warn!("a segment thread panicked");
             }
         }

@@ -1,4 +1,4 @@
-//! Statistics of the Managing Node: cycle-start jitter and PRes misses.
+//! Statistics of the Managing Node: cycle-start jitter, PRes misses, CNs lost and found.
 
 use std::collections::BTreeMap;
 
@@ -90,6 +90,27 @@ impl Default for SampleWindow {
     }
 }
 
+/// What happened to a CN, as the Managing Node saw it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CnChange {
+    /// Its PRes was missed [`super::MnConfig::lost_after`] times in a row: taken out of the
+    /// cycle, invited to identify itself again.
+    Lost,
+    /// A lost CN answered an IdentRequest: polled again (and booted again if it has to be).
+    Found,
+}
+
+/// A CN lost or found, in the cycle it happened.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CnEvent {
+    /// The full cycle it happened in ([`MnStats::cycles`] at the time: 1 for the first).
+    pub cycle: u64,
+    /// The CN.
+    pub node: u8,
+    /// What happened.
+    pub change: CnChange,
+}
+
 /// What the Managing Node counted.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct MnStats {
@@ -114,9 +135,21 @@ pub struct MnStats {
     pub decode_errors: u64,
     /// Send errors.
     pub send_errors: u64,
+    /// CNs lost and found, oldest first (the first [`MnStats::CN_EVENTS`] kept).
+    pub cn_events: Vec<CnEvent>,
 }
 
 impl MnStats {
+    /// CN events kept (a CN that keeps coming and going must not grow the statistics).
+    pub const CN_EVENTS: usize = 1024;
+
+    /// Records a CN event in cycle [`MnStats::cycles`].
+    pub(crate) fn cn_event(&mut self, node: u8, change: CnChange) {
+        if self.cn_events.len() < Self::CN_EVENTS {
+            self.cn_events.push(CnEvent { cycle: self.cycles, node, change });
+        }
+    }
+
     /// Percentiles of the cycle start lateness.
     pub fn jitter(&self) -> Percentiles {
         self.start_late_ns.percentiles()

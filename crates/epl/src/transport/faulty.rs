@@ -1,13 +1,14 @@
 //! [`FaultyLink`]: a decorator that injects faults on send with a seeded generator, so test
-//! runs are reproducible: drop a frame, delay it (the sender sleeps before sending), or corrupt
-//! it (one random byte after the Ethernet header is XORed with a non-zero value). Every fault
-//! is counted.
+//! runs are reproducible: drop a frame, delay it (the sender sleeps on the link's clock before
+//! sending), or corrupt it (one random byte after the Ethernet header is XORed with a non-zero
+//! value). Every fault is counted.
 
 use std::io;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
+use motus_clock::{SharedClock, SystemClock};
 use motus_epl_protocol::MacAddr;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -53,6 +54,7 @@ pub struct FaultCounters {
 pub struct FaultyLink<L> {
     inner: L,
     config: FaultConfig,
+    clock: SharedClock,
     rng: Mutex<SmallRng>,
     sent: AtomicU64,
     dropped: AtomicU64,
@@ -61,11 +63,17 @@ pub struct FaultyLink<L> {
 }
 
 impl<L: EthLink> FaultyLink<L> {
-    /// Wraps `inner`.
+    /// Wraps `inner` (delays on the system clock).
     pub fn new(inner: L, config: FaultConfig) -> Self {
+        Self::with_clock(inner, config, SystemClock::shared())
+    }
+
+    /// Wraps `inner`, delaying frames on `clock` (the segment's).
+    pub fn with_clock(inner: L, config: FaultConfig, clock: SharedClock) -> Self {
         Self {
             inner,
             config,
+            clock,
             rng: Mutex::new(SmallRng::seed_from_u64(config.seed)),
             sent: AtomicU64::new(0),
             dropped: AtomicU64::new(0),
@@ -102,7 +110,7 @@ impl<L: EthLink> EthLink for FaultyLink<L> {
         }
         if delay {
             self.delayed.fetch_add(1, Ordering::Relaxed);
-            std::thread::sleep(self.config.delay_by);
+            self.clock.sleep(self.config.delay_by);
         }
         match corrupt_at {
             Some((i, x)) => {

@@ -23,13 +23,26 @@
 //! time: the sender waits for a thread that is delivering (microseconds), then delivers what
 //! is left, so that its frame has been handled when its send returns. A receiver's own sends
 //! are delivered after it returns, never nested.
+//!
+//! # Time
+//! A hub runs on a [`motus_clock::Clock`]: the system clock ([`MemHub::named`]), or any other
+//! ([`MemHub::with_clock`]), such as a threaded [`motus_clock::VirtualClock`] shared with the
+//! nodes: frames are stamped with the clock's time, and a reader waiting in [`EthLink::recv`]
+//! parks on the clock ([`motus_clock::Clock::park_until`]) until its time-out, woken by the
+//! send that queues a frame for it ([`motus_clock::Clock::unpark`]). On virtual time a frame
+//! then arrives at the instant it was sent, and a time-out ends exactly at its deadline. A
+//! send delivers to the receivers run in the sending thread before it queues the frame for
+//! reading threads, and returns once those have done what they do in answer at that instant
+//! ([`motus_clock::Clock::settle`], nothing on the system clock): the order of events within
+//! an instant, and so the whole run, is the same every time.
 
 use std::collections::{HashMap, VecDeque};
 use std::io;
 use std::sync::atomic::{AtomicBool, AtomicU16, AtomicU64, Ordering};
-use std::sync::{Arc, Condvar, Mutex, OnceLock, PoisonError, RwLock, Weak};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError, RwLock, Weak};
 use std::time::{Duration, Instant};
 
+use motus_clock::{SharedClock, SystemClock};
 use motus_epl_protocol::MacAddr;
 
 use super::{EthLink, FrameHandler, MAX_FRAME};
@@ -41,8 +54,7 @@ pub const MEM_QUEUE_FRAMES: usize = 256;
 #[derive(Default)]
 struct Port {
     number: u16,
-    queue: Mutex<VecDeque<(Vec<u8>, Instant)>>,
-    ready: Condvar,
+    queue: Mutex<Queue>,
     dropped: AtomicU64,
     /// Set while `receiver` holds a handler (read on every send without taking its lock).
     inline: AtomicBool,
@@ -58,12 +70,21 @@ impl std::fmt::Debug for Port {
     }
 }
 
+/// A port's received frames and the threads waiting for them.
+#[derive(Default)]
+struct Queue {
+    frames: VecDeque<(Vec<u8>, Instant)>,
+    /// Threads waiting in [`EthLink::recv`], unparked (on the hub's clock) by a send.
+    waiters: Vec<std::thread::Thread>,
+}
+
 /// A frame waiting for a port's receiver.
 type Pending = (Arc<Port>, Vec<u8>, Instant);
 
-#[derive(Debug, Default)]
+#[derive(Debug)]
 struct Medium {
     name: String,
+    clock: SharedClock,
     ports: RwLock<Vec<Arc<Port>>>,
     next: AtomicU16,
     /// Frames for ports with a receiver, in sending order.
@@ -78,6 +99,17 @@ thread_local! {
 }
 
 impl Medium {
+    fn new(name: &str, clock: SharedClock) -> Self {
+        Medium {
+            name: name.to_owned(),
+            clock,
+            ports: RwLock::default(),
+            next: AtomicU16::default(),
+            pending: Mutex::default(),
+            delivering: Mutex::default(),
+        }
+    }
+
     /// Delivers the pending frames in this thread, after any other thread that is delivering
     /// has finished (delivering is quick: the receivers are simulated nodes' handlers). A
     /// receiver's own sends, made while this thread delivers, are delivered by the same loop.
@@ -121,9 +153,22 @@ impl MemHub {
         if let Some(medium) = hubs.get(name).and_then(Weak::upgrade) {
             return MemHub { medium };
         }
-        let medium = Arc::new(Medium { name: name.to_owned(), ..Medium::default() });
+        let medium = Arc::new(Medium::new(name, SystemClock::shared()));
         hubs.insert(name.to_owned(), Arc::downgrade(&medium));
         MemHub { medium }
+    }
+
+    /// A hub of its own called `name` on `clock` (not reachable by name: [`MemHub::named`]
+    /// and `mem://` links never join it). Every node of the segment runs on the same clock;
+    /// on a [`motus_clock::VirtualClock`] the segment runs on virtual time (see the module
+    /// documentation).
+    pub fn with_clock(name: &str, clock: SharedClock) -> MemHub {
+        MemHub { medium: Arc::new(Medium::new(name, clock)) }
+    }
+
+    /// The hub's clock.
+    pub fn clock(&self) -> &SharedClock {
+        &self.medium.clock
     }
 
     /// A new port on the hub.
@@ -169,49 +214,72 @@ impl EthLink for MemLink {
                 format!("frame of {} bytes exceeds {MAX_FRAME}", frame.len()),
             ));
         }
-        let now = Instant::now();
+        let now = self.medium.clock.now();
         let ports = self.medium.ports.read().unwrap_or_else(PoisonError::into_inner);
+        let others = || ports.iter().filter(|p| !Arc::ptr_eq(p, &self.port));
+        // First the receivers run in the sending thread, then the queues: whatever a reading
+        // thread sends in answer to this frame is delivered after it.
         let mut inline = false;
-        for p in ports.iter().filter(|p| !Arc::ptr_eq(p, &self.port)) {
-            if p.inline.load(Ordering::Acquire) {
-                let mut pending = self.medium.pending.lock().unwrap_or_else(PoisonError::into_inner);
+        {
+            let mut pending = self.medium.pending.lock().unwrap_or_else(PoisonError::into_inner);
+            for p in others().filter(|p| p.inline.load(Ordering::Acquire)) {
                 pending.push_back((Arc::clone(p), frame.to_vec(), now));
                 inline = true;
-                continue;
             }
+        }
+        for p in others().filter(|p| !p.inline.load(Ordering::Acquire)) {
             let mut q = p.queue.lock().unwrap_or_else(PoisonError::into_inner);
-            if q.len() >= MEM_QUEUE_FRAMES {
-                q.pop_front();
+            if q.frames.len() >= MEM_QUEUE_FRAMES {
+                q.frames.pop_front();
                 p.dropped.fetch_add(1, Ordering::Relaxed);
             }
-            q.push_back((frame.to_vec(), now));
-            drop(q);
-            p.ready.notify_one();
+            q.frames.push_back((frame.to_vec(), now));
+            for waiter in &q.waiters {
+                self.medium.clock.unpark(waiter);
+            }
         }
         drop(ports);
         if inline {
             self.medium.deliver_pending();
         }
+        // On a threaded virtual clock, what the readers do in answer (in this instant) is done
+        // before the sender goes on: the order of events does not depend on the OS. Not from
+        // inside a delivery (the outer send settles, once the delivery lock is free).
+        if !DELIVERING.with(std::cell::Cell::get) {
+            self.medium.clock.settle();
+        }
         Ok(())
     }
 
     fn recv(&self, buf: &mut [u8], timeout: Duration) -> io::Result<Option<(usize, Instant)>> {
-        let deadline = Instant::now() + timeout;
+        let clock = &self.medium.clock;
+        let now = clock.now();
+        // A time-out too long for an `Instant` waits a year (and then again).
+        let deadline = now.checked_add(timeout).unwrap_or(now + Duration::from_secs(365 * 86_400));
+        let me = std::thread::current();
         let mut q = self.port.queue.lock().unwrap_or_else(PoisonError::into_inner);
-        loop {
-            if let Some((frame, at)) = q.pop_front() {
+        let got = loop {
+            if let Some((frame, at)) = q.frames.pop_front() {
                 let n = frame.len().min(buf.len());
                 if let (Some(dst), Some(src)) = (buf.get_mut(..n), frame.get(..n)) {
                     dst.copy_from_slice(src);
                 }
-                return Ok(Some((n, at)));
+                break Some((n, at));
             }
-            let now = Instant::now();
-            if now >= deadline {
-                return Ok(None);
+            if clock.now() >= deadline {
+                break None;
             }
-            q = self.port.ready.wait_timeout(q, deadline - now).unwrap_or_else(PoisonError::into_inner).0;
-        }
+            // Registered before the lock is released: a frame queued from now on unparks us
+            // (an unpark before the park ends it at once).
+            if !q.waiters.iter().any(|t| t.id() == me.id()) {
+                q.waiters.push(me.clone());
+            }
+            drop(q);
+            clock.park_until(deadline);
+            q = self.port.queue.lock().unwrap_or_else(PoisonError::into_inner);
+        };
+        q.waiters.retain(|t| t.id() != me.id());
+        Ok(got)
     }
 
     fn mac(&self) -> MacAddr {
@@ -324,6 +392,40 @@ mod tests {
         assert_eq!(seen.lock().unwrap().len(), 2);
         assert!(b.recv(&mut buf, Duration::from_millis(10)).unwrap().is_some());
         assert_eq!(Arc::strong_count(&b), 1);
+    }
+
+    #[test]
+    fn on_virtual_time_a_frame_arrives_at_its_send_instant_and_a_time_out_at_its_deadline() {
+        use motus_clock::{Clock, VirtualClock};
+        let clock = VirtualClock::threaded();
+        let hub = MemHub::with_clock("test-virtual", clock.shared());
+        let (a, b) = (hub.connect(), hub.connect());
+        let reader = motus_clock::spawn(hub.clock(), std::thread::Builder::new(), move || {
+            let mut buf = [0u8; 4];
+            let mut seen = Vec::new();
+            for _ in 0..3 {
+                let got = b.recv(&mut buf, Duration::from_millis(10)).unwrap();
+                seen.push((got.map(|(n, at)| (buf[..n].to_vec(), at)), b.medium.clock.now()));
+            }
+            seen
+        })
+        .unwrap();
+        let t0 = clock.base();
+        clock.sleep(Duration::from_millis(3));
+        a.send(&[1]).unwrap();
+        clock.sleep(Duration::from_millis(1));
+        a.send(&[2]).unwrap();
+        let seen = motus_clock::while_blocked(&clock, || reader.join().unwrap());
+        let ms = Duration::from_millis;
+        assert_eq!(
+            seen,
+            vec![
+                (Some((vec![1], t0 + ms(3))), t0 + ms(3)),
+                (Some((vec![2], t0 + ms(4))), t0 + ms(4)),
+                (None, t0 + ms(14)),
+            ]
+        );
+        assert!(MemHub::named("test-virtual").medium.ports.read().unwrap().is_empty(), "not by name");
     }
 
     #[test]

@@ -101,7 +101,8 @@ impl<T: EthLink + ?Sized> EthLink for Box<T> {
 
 /// Serves `handler` from a thread of its own called `name` (for a link that cannot deliver in
 /// the sending thread, see [`EthLink::attach_receiver`]): every received frame goes to the
-/// handler until `stop` is set. A receive error is logged and retried after 5 ms.
+/// handler until `stop` is set. A receive error is logged and retried after 5 ms on `clock`
+/// (the thread takes part in the clock's time: [`motus_clock::spawn`]).
 ///
 /// # Errors
 /// The thread could not be spawned.
@@ -111,8 +112,10 @@ pub fn serve_on_thread(
     mut handler: FrameHandler,
     stop: Arc<std::sync::atomic::AtomicBool>,
     class: motus_realtime::ThreadClass,
+    clock: &motus_clock::SharedClock,
 ) -> io::Result<std::thread::JoinHandle<()>> {
-    std::thread::Builder::new().name(name).spawn(move || {
+    let thread_clock = Arc::clone(clock);
+    motus_clock::spawn(clock, std::thread::Builder::new().name(name), move || {
         motus_realtime::promote_current_thread(class);
         let mut buf = vec![0u8; MAX_FRAME];
         while !stop.load(std::sync::atomic::Ordering::Relaxed) {
@@ -121,7 +124,7 @@ pub fn serve_on_thread(
                 Ok(None) => {}
                 Err(e) => {
                     tracing::warn!(link = %link.describe(), "recv: {e}");
-                    std::thread::sleep(Duration::from_millis(5));
+                    thread_clock.sleep(Duration::from_millis(5));
                 }
             }
         }
