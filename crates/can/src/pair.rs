@@ -21,11 +21,30 @@
 //! it advances again, so the peer's timers run at every step and their frames are
 //! delivered before the next one. The driver's waits ([`motus_clock::Clock::sleep`] then
 //! a poll) do exactly that.
+//!
+//! ## Several threads: [`PairBus::threaded`]
+//! On a [`motus_clock::VirtualClock::threaded`] clock several threads take part (a
+//! master's receive thread, a watchdog, the driver, a simulator thread), and time moves
+//! only when all of them wait. A bus made with [`PairBus::threaded`] fits that: `recv`
+//! *parks* on the clock ([`motus_clock::Clock::park_until`]) and whoever queues a frame
+//! (a `send`, a [`PairBus::poll_peer`]) wakes it ([`motus_clock::Clock::unpark`]) at that
+//! very instant; `recv` does not run the peer's timers, so they run only at the instants of
+//! the sends and of a simulator thread that calls [`PairBus::poll_peer`] at its own period
+//! (every millisecond, as a device's control loop runs). Every frame then leaves and
+//! arrives at an instant fixed by the simulation, not by the host's scheduling.
+//!
+//! Several threads can act at one instant. So that the order the OS runs them in does not
+//! show, a send *settles*: the sender waits one nanosecond ([`SETTLE`]) on the clock, which
+//! moves time only once every other thread waits, so everything the frame set off at that
+//! instant (the peer's answer received by the receive thread and handed on, say to a
+//! thread that caches a status word) has happened before the sender reads anything. Time
+//! moves one nanosecond per send; on the system clock a send costs a short sleep.
 
 use crate::{CanBus, CanError, CanFrame, Received};
 use motus_clock::SharedClock;
 use std::collections::VecDeque;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
+use std::thread::Thread;
 use std::time::{Duration, Instant};
 
 /// The far end of a [`PairBus`]: a sans-IO device that answers frames and runs timers at
@@ -46,6 +65,10 @@ impl<P: PairPeer> PairPeer for Vec<P> {
     }
 }
 
+/// How long a send on a threaded bus waits on the clock for what it set off (see
+/// [`PairBus::threaded`]): one nanosecond, the clock's resolution.
+pub const SETTLE: Duration = Duration::from_nanos(1);
+
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
@@ -56,13 +79,43 @@ pub struct PairBus<P> {
     clock: SharedClock,
     queue: Mutex<VecDeque<Received>>,
     ready: Condvar,
+    /// Made with [`PairBus::threaded`]: `recv` parks on the clock.
+    threaded: bool,
+    /// Threads parked in `recv` (threaded only), woken when a frame is queued.
+    receivers: Mutex<Vec<Thread>>,
 }
 
 impl<P: PairPeer> PairBus<P> {
     /// A bus to `peer` (shared, so a test can inspect or change the peer meanwhile) on
-    /// `clock`.
+    /// `clock`, for one thread of control: `recv` waits on *wall* time for another
+    /// thread's `send` and runs the peer's timers first.
     pub fn new(peer: Arc<Mutex<P>>, clock: SharedClock) -> Self {
-        Self { peer, clock, queue: Mutex::default(), ready: Condvar::new() }
+        Self::make(peer, clock, false)
+    }
+
+    /// A bus to `peer` on a clock that several threads take part in (a
+    /// [`motus_clock::VirtualClock::threaded`], or the system clock): `recv` parks on the
+    /// clock until a frame is queued or its time-out has passed on the clock (a wake for no
+    /// reason returns `None` early, as a time-out does), and does not run the peer's timers
+    /// (sends and [`PairBus::poll_peer`] do). See the module documentation.
+    pub fn threaded(peer: Arc<Mutex<P>>, clock: SharedClock) -> Self {
+        Self::make(peer, clock, true)
+    }
+
+    fn make(peer: Arc<Mutex<P>>, clock: SharedClock, threaded: bool) -> Self {
+        Self {
+            peer,
+            clock,
+            queue: Mutex::default(),
+            ready: Condvar::new(),
+            threaded,
+            receivers: Mutex::default(),
+        }
+    }
+
+    /// Whether this bus was made with [`PairBus::threaded`].
+    pub fn is_threaded(&self) -> bool {
+        self.threaded
     }
 
     /// The peer.
@@ -89,20 +142,68 @@ impl<P: PairPeer> PairBus<P> {
         let mut q = lock(&self.queue);
         q.extend(out.into_iter().map(|frame| Received { frame, at: now }));
         self.ready.notify_all();
+        drop(q);
+        if self.threaded {
+            for t in lock(&self.receivers).iter() {
+                self.clock.unpark(t);
+            }
+        }
+    }
+
+    /// Threaded: lets what a send set off at this instant happen before the sender goes on
+    /// (the peer's answers received and handed on by the threads they are for: a receive
+    /// thread, and a thread it delivers to), so that what the sender reads next does not
+    /// depend on which thread the OS runs first. The sender waits [`SETTLE`] on the clock,
+    /// which moves time only once every other taking part thread waits.
+    fn settle(&self) {
+        self.clock.sleep(SETTLE);
+    }
+
+    /// `recv` of a threaded bus: one park on the clock (it may end early: the caller
+    /// receives again).
+    fn recv_parked(&self, timeout: Duration) -> Option<Received> {
+        let me = std::thread::current();
+        {
+            let mut receivers = lock(&self.receivers);
+            if !receivers.iter().any(|t| t.id() == me.id()) {
+                receivers.push(me.clone());
+            }
+        }
+        let mut got = lock(&self.queue).pop_front();
+        if got.is_none() {
+            let now = self.clock.now();
+            let deadline = now.checked_add(timeout).unwrap_or(now + Duration::from_secs(86_400));
+            self.clock.park_until(deadline);
+            got = lock(&self.queue).pop_front();
+        }
+        lock(&self.receivers).retain(|t| t.id() != me.id());
+        got
     }
 }
 
 impl<P: PairPeer> CanBus for PairBus<P> {
     fn send(&self, frame: &CanFrame) -> Result<(), CanError> {
-        self.run(|p, now| {
-            let mut out = p.poll(now);
-            out.extend(p.on_frame(frame, now));
-            out
-        });
+        self.send_batch(std::slice::from_ref(frame))
+    }
+
+    fn send_batch(&self, frames: &[CanFrame]) -> Result<(), CanError> {
+        for frame in frames {
+            self.run(|p, now| {
+                let mut out = p.poll(now);
+                out.extend(p.on_frame(frame, now));
+                out
+            });
+        }
+        if self.threaded && !frames.is_empty() {
+            self.settle();
+        }
         Ok(())
     }
 
     fn recv(&self, timeout: Duration) -> Result<Option<Received>, CanError> {
+        if self.threaded {
+            return Ok(self.recv_parked(timeout));
+        }
         self.poll_peer();
         let q = lock(&self.queue);
         let (mut q, _) = self
@@ -119,7 +220,7 @@ impl<P: PairPeer> CanBus for PairBus<P> {
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used, clippy::expect_used)]
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
     use super::*;
     use motus_clock::{Clock, VirtualClock};
 
@@ -158,5 +259,42 @@ mod tests {
         let ticks: Vec<_> = std::iter::from_fn(|| bus.recv(Duration::ZERO).unwrap()).collect();
         assert_eq!(ticks.len(), 2, "ticks at 100 and 200 ms");
         assert!(ticks.iter().all(|r| r.at == clock.now()));
+    }
+
+    #[test]
+    fn a_threaded_receiver_parks_on_the_clock_and_is_woken_at_the_instant_of_the_send() {
+        let clock = VirtualClock::threaded();
+        let shared = clock.shared();
+        let peer = Arc::new(Mutex::new(Echo { next_tick: None }));
+        let bus = Arc::new(PairBus::threaded(peer, shared.clone()));
+        let rx_bus = Arc::clone(&bus);
+        let rx_clock = shared.clone();
+        let receiver = motus_clock::spawn(&shared, std::thread::Builder::new(), move || {
+            let mut got = Vec::new();
+            while got.len() < 4 {
+                if let Some(r) = rx_bus.recv(Duration::from_secs(1)).unwrap() {
+                    got.push((r.frame.id(), rx_clock.now() - r.at, r.at));
+                }
+            }
+            got
+        })
+        .unwrap();
+        // The first send also runs the peer's timers (a tick at time zero); then answers
+        // about 30 and 70 ms later, each received at the very instant it was sent, and
+        // before the send returns (it settles: one nanosecond, once the receiver waits).
+        let mut sent = Vec::new();
+        for (id, pause) in [(0x600, 30), (0x610, 40), (0x620, 0)] {
+            sent.push(clock.now());
+            bus.send(&CanFrame::new(id, &[1]).unwrap()).unwrap();
+            assert_eq!(clock.now() - *sent.last().unwrap(), SETTLE);
+            clock.sleep(Duration::from_millis(pause));
+        }
+        let got = motus_clock::while_blocked(&clock, || receiver.join()).unwrap();
+        let ids: Vec<u32> = got.iter().map(|g| g.0).collect();
+        assert_eq!(ids, vec![0x700, 0x601, 0x611, 0x621], "the tick at 100 ms was never polled");
+        assert!(got.iter().all(|g| g.1 == Duration::ZERO), "received when sent: {got:?}");
+        let at: Vec<Instant> = got.iter().map(|g| g.2).collect();
+        assert_eq!(at, vec![sent[0], sent[0], sent[1], sent[2]]);
+        assert_eq!(sent[2] - sent[0], Duration::from_millis(70) + 2 * SETTLE);
     }
 }

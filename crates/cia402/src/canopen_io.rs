@@ -120,43 +120,42 @@ impl CanopenDrive {
 
     /// Starts the thread that keeps the TPDO cache. It ends (and its subscription with it)
     /// once this driver is dropped, so a drive brought up again and again (after restarts of
-    /// the drive) leaves no thread behind.
+    /// the drive) leaves no thread behind. It takes part in the master's clock and waits on
+    /// it (on a threaded virtual clock the cache is updated at the instant of the TPDO).
     fn listen(&self) {
-        let rx = self.master.subscribe(motus_canopen::CobFilter::Range(
+        let rx = self.master.subscribe_on_clock(motus_canopen::CobFilter::Range(
             0x180 + u32::from(self.node)..=0x280 + u32::from(self.node),
         ));
         let cache = Arc::downgrade(&self.cache);
         let (t1, t2) = (0x180 + u32::from(self.node), 0x280 + u32::from(self.node));
-        let spawned =
-            std::thread::Builder::new().name(format!("cia402-tpdo-{}", self.node)).spawn(move || {
-                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
-                loop {
-                    let r = match rx.recv_timeout(Duration::from_secs(1)) {
-                        Ok(r) => r,
-                        Err(std::sync::mpsc::RecvTimeoutError::Timeout) if cache.strong_count() > 0 => {
-                            continue
-                        }
-                        Err(_) => break,
-                    };
-                    let Some(cache) = cache.upgrade() else { break };
-                    let id = r.frame.id();
-                    let d = r.frame.data();
-                    let mut c = match cache.lock() {
-                        Ok(c) => c,
-                        Err(p) => p.into_inner(),
-                    };
-                    if (id == t1 || id == t2) && d.len() >= 2 {
-                        if let Some(sw) = d.get(0..2).and_then(|b| b.try_into().ok()) {
-                            c.statusword = Some((u16::from_le_bytes(sw), r.at));
-                        }
-                    }
-                    if id == t2 {
-                        if let Some(p) = d.get(2..6).and_then(|b| b.try_into().ok()) {
-                            c.position = Some((i32::from_le_bytes(p), r.at));
-                        }
+        let builder = std::thread::Builder::new().name(format!("cia402-tpdo-{}", self.node));
+        let spawned = motus_clock::spawn(self.master.clock(), builder, move || {
+            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
+            loop {
+                let r = match rx.recv_timeout(Duration::from_secs(1)) {
+                    Ok(r) => r,
+                    Err(std::sync::mpsc::RecvTimeoutError::Timeout) if cache.strong_count() > 0 => continue,
+                    Err(_) => break,
+                };
+                let Some(cache) = cache.upgrade() else { break };
+                let id = r.frame.id();
+                let d = r.frame.data();
+                let mut c = match cache.lock() {
+                    Ok(c) => c,
+                    Err(p) => p.into_inner(),
+                };
+                if (id == t1 || id == t2) && d.len() >= 2 {
+                    if let Some(sw) = d.get(0..2).and_then(|b| b.try_into().ok()) {
+                        c.statusword = Some((u16::from_le_bytes(sw), r.at));
                     }
                 }
-            });
+                if id == t2 {
+                    if let Some(p) = d.get(2..6).and_then(|b| b.try_into().ok()) {
+                        c.position = Some((i32::from_le_bytes(p), r.at));
+                    }
+                }
+            }
+        });
         if let Err(e) = spawned {
             tracing::error!(error = %e, "cannot spawn the TPDO listener");
         }

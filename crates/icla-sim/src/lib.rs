@@ -8,7 +8,8 @@
 //!   [`SimDrive::poll`] the timers; both take `now` and return the frames to send.
 //! * [`run`] / [`run_shared`]: serve several nodes on one [`motus_can::CanBus`].
 //! * [`pair()`]: the nodes as the in-process peer of a [`motus_can::PairBus`], answering
-//!   synchronously on a [`motus_clock::Clock`] (driver-versus-simulator tests on virtual time).
+//!   synchronously on a [`motus_clock::Clock`] (driver-versus-simulator tests on virtual time);
+//!   [`pair_threaded`] and [`run_pair`] for a clock several threads take part in.
 //! * [`eds::export`]: the dictionary as an EDS that python-canopen imports.
 //!
 //! Defaults (see [`objects`] for the dictionary and the PDO set): node id 127 (or
@@ -37,5 +38,5 @@ pub mod sdo_server;
 pub use access::HOMING_METHODS;
 pub use config::{parse_nodes, Identity, SimConfig};
 pub use drive::SimDrive;
-pub use pair::pair;
+pub use pair::{pair, pair_threaded, run_pair};
 pub use runtime::{lock, run, run_shared, SharedDrives};

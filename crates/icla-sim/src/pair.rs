@@ -3,8 +3,9 @@
 //! (see [`motus_can::pair`]). On a [`motus_clock::VirtualClock`] the motion model
 //! integrates exactly up to the virtual time the driver has slept to.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use motus_can::{CanFrame, PairBus, PairPeer};
 use motus_clock::SharedClock;
@@ -26,8 +27,40 @@ impl PairPeer for SimDrive {
 }
 
 /// A bus to `drives` on `clock`, and the drives (shared with the bus, for a test or a world
-/// model to inspect and to inject faults).
+/// model to inspect and to inject faults). For one thread of control ([`PairBus::new`]).
 pub fn pair(drives: Vec<SimDrive>, clock: SharedClock) -> (Arc<PairBus<Vec<SimDrive>>>, SharedDrives) {
     let shared: SharedDrives = Arc::new(Mutex::new(drives));
     (Arc::new(PairBus::new(Arc::clone(&shared), clock)), shared)
+}
+
+/// [`pair()`] on a clock that several threads take part in ([`PairBus::threaded`]): the
+/// receiver parks on the clock, and the drives' timers (motion, heartbeats, event-timer
+/// PDOs, boot-up) run at the instants of the sends and of [`PairBus::poll_peer`], which a
+/// simulator thread calls at its own period (see [`run_pair`]).
+pub fn pair_threaded(
+    drives: Vec<SimDrive>,
+    clock: SharedClock,
+) -> (Arc<PairBus<Vec<SimDrive>>>, SharedDrives) {
+    let shared: SharedDrives = Arc::new(Mutex::new(drives));
+    (Arc::new(PairBus::threaded(Arc::clone(&shared), clock)), shared)
+}
+
+/// Runs the drives of a threaded pair as their own control loop does: every `period` of
+/// the bus's clock (the first one `period` after the call) their timers run
+/// ([`PairBus::poll_peer`]) and `each` is called, until `stop` is set. The calling thread
+/// must take part in the clock (started with [`motus_clock::spawn`]).
+pub fn run_pair(
+    bus: &PairBus<Vec<SimDrive>>,
+    period: Duration,
+    stop: &AtomicBool,
+    mut each: impl FnMut(Instant),
+) {
+    let clock = Arc::clone(bus.clock());
+    let mut next = clock.now();
+    while !stop.load(Ordering::Relaxed) {
+        next += period;
+        clock.sleep_until(next);
+        bus.poll_peer();
+        each(next);
+    }
 }

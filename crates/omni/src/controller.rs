@@ -20,10 +20,14 @@
 //!   corrected by the next.
 //! * **On doubt about motion, stop**: any drive error or a move that does not finish in
 //!   time sends a quick stop to all wheels, then returns the error.
+//! * **Time is an input**: a move's time-out and the sensor's settling time are measured on
+//!   a [`motus_clock::Clock`] ([`Robot::with_clock`]; the system clock by default), the one
+//!   the drives wait on, so the whole controller runs on virtual time in tests.
 
 use std::sync::{Arc, Mutex, PoisonError};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
+use motus_clock::{SharedClock, SystemClock};
 use motus_mouse_protocol::Calibration;
 
 use crate::fusion::{FusedPose, Fusion, SlipTolerance};
@@ -176,20 +180,40 @@ pub struct Robot<D: WheelDrives> {
     config: RobotConfig,
     fusion: Fusion,
     sensor: Arc<SensorInput>,
+    clock: SharedClock,
 }
 
 impl<D: WheelDrives> Robot<D> {
     /// Takes the drives; the pose starts at the world origin (heading 0) at the current
-    /// wheel positions.
+    /// wheel positions. Times are on the system clock.
     ///
     /// # Errors
     /// [`RobotError::Drive`] if the positions cannot be read.
     pub fn new(drives: D, config: RobotConfig) -> Result<Robot<D>, RobotError<D::Error>> {
+        Self::with_clock(drives, config, SystemClock::shared())
+    }
+
+    /// [`Robot::new`] with a move's time-out and the sensor's settling time on `clock` (the
+    /// drives' clock: a virtual one in tests).
+    ///
+    /// # Errors
+    /// [`RobotError::Drive`] if the positions cannot be read.
+    pub fn with_clock(
+        drives: D,
+        config: RobotConfig,
+        clock: SharedClock,
+    ) -> Result<Robot<D>, RobotError<D::Error>> {
         let fusion = Fusion::new(config.geometry, config.calibration, config.tolerance, Pose::default());
-        let mut robot = Robot { drives, config, fusion, sensor: Arc::new(SensorInput::default()) };
+        let mut robot = Robot { drives, config, fusion, sensor: Arc::new(SensorInput::default()), clock };
         let p = robot.drive_call(|d| d.positions())?;
         robot.fusion.update(p, None);
         Ok(robot)
+    }
+
+    /// The clock of the controller's times.
+    #[must_use]
+    pub fn clock(&self) -> &SharedClock {
+        &self.clock
     }
 
     /// The handle a sensor reader feeds with packet counts.
@@ -280,7 +304,7 @@ impl<D: WheelDrives> Robot<D> {
             + self.config.timeout_margin;
         tracing::debug!(?travel, ?profiles, planned_s = planned, "move");
         self.drive_call(|d| d.move_relative(travel, profiles))?;
-        let start = Instant::now();
+        let start = self.clock.now();
         loop {
             let cycle = self.config.cycle;
             let reached = self.drive_call(|d| d.wait_reached(cycle))?;
@@ -290,12 +314,12 @@ impl<D: WheelDrives> Robot<D> {
             }
             if reached {
                 if with_sensor {
-                    std::thread::sleep(self.config.sensor_settle);
+                    self.clock.sleep(self.config.sensor_settle);
                     self.refresh()?;
                 }
                 return Ok(());
             }
-            if start.elapsed() > timeout {
+            if self.clock.elapsed(start) > timeout {
                 tracing::error!(?timeout, "move not finished in time: quick stop");
                 let quick_stop_error = self.drives.quick_stop().err();
                 return Err(RobotError::MoveTimeout { timeout, quick_stop_error });

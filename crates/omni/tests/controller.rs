@@ -1,11 +1,14 @@
 //! The controller against fake drives that move a simulated world (with and without
 //! slip) and feed a sensor: programs come back to the start, `goto` reaches its target,
-//! slip is corrected by the correction moves, a drive error quick-stops every wheel.
+//! slip is corrected by the correction moves, a drive error quick-stops every wheel, a move
+//! that does not finish times out. The controller's times (sensor settling, move time-outs)
+//! are on a virtual clock.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use std::sync::Arc;
 use std::time::Duration;
 
+use motus_clock::{Clock, VirtualClock};
 use motus_mouse_protocol::Calibration;
 use motus_omni::sync_profile::WheelProfile;
 use motus_omni::{
@@ -105,7 +108,7 @@ fn robot(slip: [f64; 3]) -> Robot<FakeDrives> {
         tolerance: SlipTolerance { relative: 0.005, window_m: 2.0, ..SlipTolerance::default() },
         ..RobotConfig::default()
     };
-    let mut r = Robot::new(FakeDrives::new(slip), config).unwrap();
+    let mut r = Robot::with_clock(FakeDrives::new(slip), config, VirtualClock::new().shared()).unwrap();
     let input = r.sensor_input();
     r.drives_mut().sensor = Some(input);
     r
@@ -179,4 +182,47 @@ fn invalid_inputs_are_refused() {
     let bad = Ramp { velocity: 0.0, ..Ramp::SEED };
     assert!(matches!(r.run_program(&Program::line(), bad), Err(RobotError::InvalidRamp(_))));
     assert!(r.drives_mut().moves.is_empty());
+}
+
+/// Drives whose moves never finish: each wait takes its whole time-out on the clock.
+struct StuckDrives {
+    clock: VirtualClock,
+    quick_stops: u32,
+}
+
+impl WheelDrives for StuckDrives {
+    type Error = FakeError;
+
+    fn positions(&mut self) -> Result<[i32; 3], FakeError> {
+        Ok([0; 3])
+    }
+
+    fn move_relative(&mut self, _: [i32; 3], _: [WheelProfile; 3]) -> Result<(), FakeError> {
+        Ok(())
+    }
+
+    fn wait_reached(&mut self, timeout: Duration) -> Result<bool, FakeError> {
+        self.clock.sleep(timeout);
+        Ok(false)
+    }
+
+    fn quick_stop(&mut self) -> Result<(), FakeError> {
+        self.quick_stops += 1;
+        Ok(())
+    }
+}
+
+#[test]
+fn a_move_that_does_not_finish_times_out_on_the_clock_and_quick_stops() {
+    let clock = VirtualClock::new();
+    let drives = StuckDrives { clock: clock.clone(), quick_stops: 0 };
+    let mut r = Robot::with_clock(drives, RobotConfig::default(), clock.shared()).unwrap();
+    let t0 = clock.now();
+    let e = r.goto(0.1, 0.0, None, false).unwrap_err();
+    let RobotError::MoveTimeout { timeout, quick_stop_error: None } = e else { panic!("{e}") };
+    // 1.5 times the planned trapezoid plus the 2 s margin, polled every 10 ms cycle.
+    let waited = clock.elapsed(t0);
+    assert!(timeout > Duration::from_secs(2), "{timeout:?}");
+    assert!(waited > timeout && waited <= timeout + Duration::from_millis(10), "{waited:?} for {timeout:?}");
+    assert_eq!(r.drives_mut().quick_stops, 1);
 }

@@ -1,9 +1,10 @@
 //! Reads the optical-mouse converter (7-byte packets at 9600 bit/s) from a serial line
 //! into the controller's sensor input.
 
+use motus_clock::{SharedClock, SystemClock};
 use motus_mouse_protocol::{ConverterPacket, PacketScanner};
 use motus_omni::controller::SensorInput;
-use motus_serial::{FramedLink, SerialLink};
+use motus_serial::{FramedLink, Link, SerialLink};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
@@ -13,6 +14,7 @@ use std::time::Duration;
 pub struct SensorReader {
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
+    clock: SharedClock,
 }
 
 impl SensorReader {
@@ -20,10 +22,25 @@ impl SensorReader {
     /// `input`. Garbage between packets is skipped by the resynchronising decoder.
     pub fn start(path: &str, input: Arc<SensorInput>) -> std::io::Result<SensorReader> {
         let link = SerialLink::open(path, 9600)?;
-        let mut sensor = FramedLink::new(Box::new(link), PacketScanner::<ConverterPacket>::default());
+        Self::start_on(Box::new(link), input, SystemClock::shared())
+    }
+
+    /// Reads the converter's packets from `link` (any [`Link`]: a serial port, or an
+    /// in-process line in tests) with its time-outs on `clock`; the reading thread takes
+    /// part in the clock ([`motus_clock::spawn`]), so on a threaded virtual clock the
+    /// counts reach `input` at the virtual instant their packet is complete.
+    pub fn start_on(
+        link: Box<dyn Link>,
+        input: Arc<SensorInput>,
+        clock: SharedClock,
+    ) -> std::io::Result<SensorReader> {
+        let mut sensor =
+            FramedLink::with_clock(link, PacketScanner::<ConverterPacket>::default(), Arc::clone(&clock));
         let stop = Arc::new(AtomicBool::new(false));
         let s = Arc::clone(&stop);
-        let thread = std::thread::Builder::new().name("mouse-reader".into()).spawn(move || {
+        let thread_clock = Arc::clone(&clock);
+        let builder = std::thread::Builder::new().name("mouse-reader".into());
+        let thread = motus_clock::spawn(&clock, builder, move || {
             motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
             while !s.load(Ordering::Relaxed) {
                 match sensor.receive(Duration::from_millis(20)) {
@@ -31,12 +48,12 @@ impl SensorReader {
                     Ok(_) => {}
                     Err(e) => {
                         tracing::warn!(error = %e, "mouse sensor read failed");
-                        std::thread::sleep(Duration::from_millis(50));
+                        thread_clock.sleep(Duration::from_millis(50));
                     }
                 }
             }
         })?;
-        Ok(SensorReader { stop, thread: Some(thread) })
+        Ok(SensorReader { stop, thread: Some(thread), clock })
     }
 }
 
@@ -44,7 +61,7 @@ impl Drop for SensorReader {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
         if let Some(t) = self.thread.take() {
-            let _ = t.join();
+            let _ = motus_clock::while_blocked(&*self.clock, || t.join());
         }
     }
 }

@@ -1,4 +1,8 @@
-//! The three wheel drives over CANopen / CiA 402.
+//! The three wheel drives over CANopen / CiA 402. Every wait (boot-up, set-point
+//! acknowledge, target reached) and the watchdog run on the master's clock
+//! ([`Master::clock`]): the system clock, or a threaded virtual clock in tests
+//! ([`Master::with_threaded_clock`]), where the watchdog takes part in the clock and reacts
+//! at the virtual instant of the event.
 
 use motus_canopen::{Master, MasterEvent, NmtState};
 use motus_cia402::group::{self, GroupMove};
@@ -8,7 +12,7 @@ use motus_omni::controller::WheelDrives;
 use motus_omni::sync_profile::WheelProfile;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// Why a wheel operation failed.
 #[derive(Debug, thiserror::Error)]
@@ -89,17 +93,18 @@ impl CanopenWheels {
     /// gone, enables, and selects profile position. Starts the watchdog.
     pub fn bring_up(master: Arc<Master>, settings: &WheelSettings) -> Result<Self, WheelError> {
         let nodes = settings.nodes;
+        let clock = Arc::clone(master.clock());
         let mut drives = Vec::new();
         for node in nodes {
-            let deadline = Instant::now() + settings.boot_timeout;
+            let deadline = clock.now() + settings.boot_timeout;
             while master.node_state(node).is_none() {
-                if Instant::now() > deadline {
+                if clock.now() > deadline {
                     return Err(WheelError::BringUp {
                         node,
                         reason: format!("no boot-up or heartbeat within {:?}", settings.boot_timeout),
                     });
                 }
-                std::thread::sleep(Duration::from_millis(5));
+                clock.sleep(Duration::from_millis(5));
             }
             // Heartbeat every third of the consumer time, so one lost frame is tolerated.
             let period =
@@ -196,15 +201,18 @@ fn spawn_watchdog(
     stopped: Arc<Mutex<Option<String>>>,
     run: Arc<AtomicBool>,
 ) {
-    let events = master.events();
-    let spawned = std::thread::Builder::new().name("robot-watchdog".into()).spawn(move || {
+    let events = master.events_on_clock();
+    let clock = Arc::clone(master.clock());
+    let builder = std::thread::Builder::new().name("robot-watchdog".into());
+    let spawned = motus_clock::spawn(&clock, builder, move || {
         // Quick-stops every wheel on a lost heartbeat or an EMCY: a device thread.
         motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
         while run.load(Ordering::Relaxed) {
             let Ok(event) = events.recv_timeout(Duration::from_millis(50)) else { continue };
             let reason = match event {
                 MasterEvent::HeartbeatLost { node, last_seen } if nodes.contains(&node) => {
-                    Some(format!("node {node} heartbeat lost (last seen {:?} ago)", last_seen.elapsed()))
+                    let ago = master.clock().elapsed(last_seen);
+                    Some(format!("node {node} heartbeat lost (last seen {ago:?} ago)"))
                 }
                 MasterEvent::StateChanged { node, to, .. }
                     if nodes.contains(&node) && !matches!(to, NmtState::Operational) =>
@@ -263,7 +271,8 @@ impl WheelDrives for CanopenWheels {
         let io_err = |wheel: usize, node: u8, e| WheelError::Drive { wheel, node, source: DriveError::Io(e) };
         group::start_together(&bus, &moves).map_err(|e| io_err(1, self.nodes[0], e))?;
         // Every drive must acknowledge the set-point (statusword bit 12) before bit 4 drops.
-        let deadline = Instant::now() + Duration::from_secs(2);
+        let clock = Arc::clone(self.master.clock());
+        let deadline = clock.now() + Duration::from_secs(2);
         loop {
             let words = self.statuswords()?;
             if words.iter().all(|w| w & sw::SET_POINT_ACKNOWLEDGE != 0) {
@@ -278,7 +287,7 @@ impl WheelDrives for CanopenWheels {
                     source: DriveError::Fault { node, code: None },
                 });
             }
-            if Instant::now() > deadline {
+            if clock.now() > deadline {
                 let _ = quick_stop_all(&self.master, &self.nodes);
                 let i = words.iter().position(|w| w & sw::SET_POINT_ACKNOWLEDGE == 0).unwrap_or(0);
                 let node = self.nodes.get(i).copied().unwrap_or(0);
@@ -292,7 +301,7 @@ impl WheelDrives for CanopenWheels {
                     },
                 });
             }
-            std::thread::sleep(Duration::from_millis(2));
+            clock.sleep(Duration::from_millis(2));
         }
         group::finish(&bus, &moves).map_err(|e| io_err(1, self.nodes[0], e))?;
         self.last_moves = moves;
@@ -300,7 +309,8 @@ impl WheelDrives for CanopenWheels {
     }
 
     fn wait_reached(&mut self, timeout: Duration) -> Result<bool, WheelError> {
-        let deadline = Instant::now() + timeout;
+        let clock = Arc::clone(self.master.clock());
+        let deadline = clock.now() + timeout;
         loop {
             self.check()?;
             let words = self.statuswords()?;
@@ -330,10 +340,10 @@ impl WheelDrives for CanopenWheels {
             {
                 return Ok(true);
             }
-            if Instant::now() > deadline {
+            if clock.now() > deadline {
                 return Ok(false);
             }
-            std::thread::sleep(Duration::from_millis(5));
+            clock.sleep(Duration::from_millis(5));
         }
     }
 

@@ -1,12 +1,14 @@
 //! The master's own heartbeat (COB-ID 0x700 + its node id, state Operational): drives that
 //! consume it (object 0x1016) stop by themselves when the master dies or its bus link breaks.
+//! The period is kept on the master's clock (see [`Master::with_threaded_clock`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use motus_canopen_protocol::{CanFrame, NmtState};
+use motus_clock::SharedClock;
 
 use crate::error::MasterError;
 
@@ -19,6 +21,7 @@ pub struct HeartbeatProducer {
     node: u8,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
+    clock: SharedClock,
 }
 
 impl HeartbeatProducer {
@@ -32,7 +35,9 @@ impl HeartbeatProducer {
     pub fn stop(&mut self) {
         self.stop.store(true, Ordering::Release);
         if let Some(h) = self.thread.take() {
-            let _ = h.join();
+            // Ends its wait at once (it parks on the clock).
+            self.clock.unpark(h.thread());
+            let _ = motus_clock::while_blocked(&*self.clock, || h.join());
         }
     }
 }
@@ -52,7 +57,9 @@ pub fn consumer_entry(producer: u8, time: Duration) -> u32 {
 }
 
 impl Master {
-    /// Sends this master's heartbeat as node `node` (1..=127) every `period`, the first now.
+    /// Sends this master's heartbeat as node `node` (1..=127) every `period`, the first now,
+    /// on the master's clock (the system clock, or a threaded virtual one: a thread taking
+    /// part, which sends at exactly every period; not a one-thread-of-control clock).
     ///
     /// # Errors
     /// An invalid node id or period, or the thread cannot start.
@@ -66,34 +73,36 @@ impl Master {
             .map_err(|e| MasterError::InvalidArgument(e.to_string()))?;
         let stop = Arc::new(AtomicBool::new(false));
         let (inner, stop2) = (Arc::clone(&self.inner), Arc::clone(&stop));
-        let thread = std::thread::Builder::new()
-            .name("canopen-heartbeat".into())
-            .spawn(move || {
-                // The cell's drives stop (EMCY 0x8130) when this heartbeat is late.
-                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
-                let mut next = Instant::now();
-                // While the bus is down every heartbeat fails: logged once, then summarised.
-                let mut failures = FailureLog::new("the master's heartbeat", Duration::from_secs(5));
-                let bus = inner.bus.describe();
-                while !stop2.load(Ordering::Acquire) {
-                    let now = Instant::now();
-                    if now >= next {
-                        match inner.send(&frame, || "sending the master's heartbeat".into()) {
-                            Ok(()) => failures.succeed(now, &bus),
-                            Err(e) => failures.fail(now, &e, &bus),
-                        }
-                        next += period;
-                        if next < now {
-                            next = now + period;
-                        }
+        let clock = Arc::clone(&self.inner.clock);
+        let builder = std::thread::Builder::new().name("canopen-heartbeat".into());
+        let thread = motus_clock::spawn(&clock, builder, move || {
+            // The cell's drives stop (EMCY 0x8130) when this heartbeat is late.
+            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
+            let clock = &*inner.clock;
+            let mut next = clock.now();
+            // While the bus is down every heartbeat fails: logged once, then summarised.
+            let mut failures = FailureLog::new("the master's heartbeat", Duration::from_secs(5));
+            let bus = inner.bus.describe();
+            while !stop2.load(Ordering::Acquire) {
+                let now = clock.now();
+                if now >= next {
+                    match inner.send(&frame, || "sending the master's heartbeat".into()) {
+                        Ok(()) => failures.succeed(now, &bus),
+                        Err(e) => failures.fail(now, &e, &bus),
                     }
-                    std::thread::sleep(
-                        next.saturating_duration_since(Instant::now()).min(Duration::from_millis(20)),
-                    );
+                    next += period;
+                    if next < now {
+                        next = now + period;
+                    }
                 }
-            })
-            .map_err(|e| MasterError::InvalidArgument(format!("cannot spawn the heartbeat thread: {e}")))?;
-        Ok(HeartbeatProducer { node, stop, thread: Some(thread) })
+                // Parked (a stop wakes it); on real time in slices, to notice a stop.
+                let until =
+                    if inner.threaded { next } else { next.min(clock.now() + Duration::from_millis(20)) };
+                clock.park_until(until);
+            }
+        })
+        .map_err(|e| MasterError::InvalidArgument(format!("cannot spawn the heartbeat thread: {e}")))?;
+        Ok(HeartbeatProducer { node, stop, thread: Some(thread), clock })
     }
 }
 

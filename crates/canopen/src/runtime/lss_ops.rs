@@ -1,13 +1,15 @@
-//! LSS master services of the runtime (CiA 305). One LSS operation at a time.
+//! LSS master services of the runtime (CiA 305). One LSS operation at a time. Time-outs
+//! are on the master's clock (on a threaded one, the waiting thread parks on it).
 
 use std::sync::mpsc::{channel, Receiver, RecvTimeoutError};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use motus_canopen_protocol::{LssIdentityField, LssRequest, LssResponse};
 
 use crate::error::MasterError;
 use crate::lss::{self, Fastscan, FastscanStep, LssError, LssIdentity, LssMode};
 
+use super::wake::Waiter;
 use super::{lock, Inner, Master};
 
 /// Clears the LSS waiter when an operation ends.
@@ -19,7 +21,7 @@ struct LssWaiter<'a> {
 impl<'a> LssWaiter<'a> {
     fn new(inner: &'a Inner) -> Self {
         let (tx, rx) = channel();
-        *lock(&inner.lss_waiter) = Some(tx);
+        *lock(&inner.lss_waiter) = Some(Waiter::new(tx, inner.wake_slot()));
         Self { inner, rx }
     }
 }
@@ -64,10 +66,9 @@ impl Master {
         for r in reqs {
             self.lss_send(r)?;
         }
-        let deadline = Instant::now() + timeout;
+        let deadline = self.inner.clock.now() + timeout;
         loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            match waiter.rx.recv_timeout(left) {
+            match self.inner.recv_until(&waiter.rx, deadline) {
                 Ok(resp) if lss::answers(last, &resp) => {
                     lss::check_result(&resp)?;
                     return Ok(resp);
@@ -142,25 +143,21 @@ impl Master {
     pub fn lss_fastscan(&self, step_timeout: Duration) -> Result<Option<LssIdentity>, MasterError> {
         let _one_at_a_time = lock(&self.inner.lss_lock);
         let waiter = LssWaiter::new(&self.inner);
-        let (mut scan, first) = Fastscan::start(Instant::now(), step_timeout)?;
+        let clock = &*self.inner.clock;
+        let (mut scan, first) = Fastscan::start(clock.now(), step_timeout)?;
         self.inner.send(&first, || "sending LSS fastscan".into())?;
         loop {
-            let left =
-                scan.deadline().map_or(Duration::ZERO, |d| d.saturating_duration_since(Instant::now()));
-            let step = match waiter.rx.recv_timeout(left) {
+            let deadline = scan.deadline().unwrap_or_else(|| clock.now());
+            let step = match self.inner.recv_until(&waiter.rx, deadline) {
                 Ok(resp) => {
                     // Several unconfigured slaves may answer the same request: wait a
                     // little and drop the other answers, or they would be taken as the
                     // answers to the next requests.
-                    let settle = Instant::now() + step_timeout / 4;
-                    while let Some(left) = settle.checked_duration_since(Instant::now()) {
-                        if waiter.rx.recv_timeout(left).is_err() {
-                            break;
-                        }
-                    }
-                    scan.on_response(&resp, Instant::now())
+                    let settle = clock.now() + step_timeout / 4;
+                    while self.inner.recv_until(&waiter.rx, settle).is_ok() {}
+                    scan.on_response(&resp, clock.now())
                 }
-                Err(_) => scan.poll(Instant::now()),
+                Err(_) => scan.poll(clock.now()),
             };
             match step {
                 FastscanStep::Wait => {}

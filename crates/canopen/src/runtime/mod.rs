@@ -8,17 +8,19 @@ mod lss_ops;
 mod sdo_ops;
 mod spin_wait;
 mod sync_producer;
+mod wake;
 
 pub use heartbeat_producer::{consumer_entry, HeartbeatProducer};
 pub use sdo_ops::{DumpRow, NodeInfo};
 pub use sync_producer::SyncProducer;
+pub use wake::ClockReceiver;
 
 use std::collections::HashMap;
 use std::ops::RangeInclusive;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{channel, Receiver, Sender};
+use std::sync::mpsc::{channel, Receiver};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
-use std::thread::JoinHandle;
+use std::thread::{JoinHandle, Thread};
 use std::time::{Duration, Instant};
 
 use motus_can::{CanBus, CanError, CanFrame, Received};
@@ -32,6 +34,8 @@ use crate::error::MasterError;
 use crate::heartbeat::{HeartbeatConsumer, HeartbeatEvent};
 use crate::nmt::{command_frame, parse_heartbeat, NodeChange, NodeTable};
 use crate::sdo_client::SDO_RESPONSE_BASE;
+
+use wake::{Waiter, WakeSlot};
 
 /// Something the master observed on the bus.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -132,17 +136,24 @@ pub(crate) struct Inner {
     bus: Arc<dyn CanBus>,
     /// The time of SDO deadlines and heartbeat monitoring (see [`Master::with_clock`]).
     clock: SharedClock,
+    /// The master's threads take part in the clock and its waits park on it (see
+    /// [`Master::with_threaded_clock`]).
+    threaded: bool,
     running: AtomicBool,
+    /// The receive thread (woken when what it waits for changes).
+    rx_thread: Mutex<Option<Thread>>,
     sdo_timeout: Mutex<Duration>,
     lss_timeout: Mutex<Duration>,
-    sdo_waiters: Mutex<HashMap<u8, Sender<Received>>>,
+    sdo_waiters: Mutex<HashMap<u8, Waiter<Received>>>,
     sdo_locks: Mutex<HashMap<u8, Arc<Mutex<()>>>>,
     nodes: Mutex<NodeTable>,
     nodes_changed: Condvar,
+    /// Threads parked in `wait_boots`/`wait_state` (threaded only).
+    node_waiters: Mutex<Vec<Thread>>,
     heartbeat: Mutex<HeartbeatConsumer>,
-    event_subs: Mutex<Vec<Sender<MasterEvent>>>,
-    pdo_subs: Mutex<Vec<(CobFilter, Sender<Received>)>>,
-    lss_waiter: Mutex<Option<Sender<LssResponse>>>,
+    event_subs: Mutex<Vec<Waiter<MasterEvent>>>,
+    pdo_subs: Mutex<Vec<(CobFilter, Waiter<Received>)>>,
+    lss_waiter: Mutex<Option<Waiter<LssResponse>>>,
     lss_lock: Mutex<()>,
     eds: Mutex<Option<Arc<ObjectDictionary>>>,
     stats: Stats,
@@ -166,7 +177,34 @@ impl Inner {
 
     fn emit(&self, event: MasterEvent) {
         tracing::debug!(?event, "master event");
-        lock(&self.event_subs).retain(|tx| tx.send(event.clone()).is_ok());
+        lock(&self.event_subs).retain(|w| w.send(event.clone(), &*self.clock));
+    }
+
+    /// Where a thread waiting for a delivery is woken: itself on a threaded master, nobody
+    /// otherwise (it blocks on its channel).
+    pub(crate) fn wake_slot(&self) -> Option<Arc<WakeSlot>> {
+        self.threaded.then(WakeSlot::current)
+    }
+
+    /// Receives from `rx` (filled by the receive thread for the calling thread, woken
+    /// through [`Self::wake_slot`]) until `deadline` on the clock; see [`wake::recv_until`].
+    /// The caller is the thread of control, so on a one-thread virtual clock a time-out
+    /// moves the clock to the deadline.
+    pub(crate) fn recv_until<T>(
+        &self,
+        rx: &Receiver<T>,
+        deadline: Instant,
+    ) -> Result<T, std::sync::mpsc::RecvTimeoutError> {
+        wake::recv_until(rx, &*self.clock, deadline, self.threaded, true)
+    }
+
+    /// Wakes the receive thread (threaded: it recomputes how long it may park).
+    fn wake_receiver(&self) {
+        if self.threaded {
+            if let Some(t) = lock(&self.rx_thread).as_ref() {
+                self.clock.unpark(t);
+            }
+        }
     }
 
     fn dispatch(&self, r: Received) {
@@ -176,7 +214,7 @@ impl Inner {
         {
             let mut subs = lock(&self.pdo_subs);
             if !subs.is_empty() && !frame.is_extended() {
-                subs.retain(|(f, tx)| !f.matches(id) || tx.send(r.clone()).is_ok());
+                subs.retain(|(f, w)| !f.matches(id) || w.send(r.clone(), &*self.clock));
             }
         }
         if frame.is_extended() {
@@ -191,7 +229,7 @@ impl Inner {
                 let node = u8::try_from(id - SDO_RESPONSE_BASE).unwrap_or(0);
                 let waiter = lock(&self.sdo_waiters).get(&node).cloned();
                 match waiter {
-                    Some(tx) if tx.send(r.clone()).is_ok() => {}
+                    Some(w) if w.send(r.clone(), &*self.clock) => {}
                     _ => {
                         self.stats.unsolicited.fetch_add(1, Ordering::Relaxed);
                     }
@@ -208,8 +246,8 @@ impl Inner {
             },
             LSS_SLAVE_TO_MASTER => match (frame.is_remote(), LssResponse::decode(frame.data())) {
                 (false, Some(resp)) => {
-                    if let Some(tx) = lock(&self.lss_waiter).as_ref() {
-                        let _ = tx.send(resp);
+                    if let Some(w) = lock(&self.lss_waiter).as_ref() {
+                        let _ = w.send(resp, &*self.clock);
                     }
                 }
                 _ => self.malformed(frame),
@@ -226,6 +264,11 @@ impl Inner {
     fn on_heartbeat(&self, node: u8, state: NmtState, at: Instant) {
         let change = lock(&self.nodes).on_heartbeat(node, state, at);
         self.nodes_changed.notify_all();
+        if self.threaded {
+            for t in lock(&self.node_waiters).iter() {
+                self.clock.unpark(t);
+            }
+        }
         let hb_events = lock(&self.heartbeat).on_heartbeat(node, state, at);
         for e in hb_events {
             self.emit_heartbeat(e);
@@ -243,23 +286,42 @@ impl Inner {
         });
     }
 
+    /// How long the receive thread waits for a frame: 5 ms of wall time; on a threaded
+    /// clock until the next heartbeat deadline (just past it: a loss is a silence *longer*
+    /// than the consumer time), at most [`THREADED_IDLE`], so a loss is reported at the
+    /// instant it happens and an idle bus costs few wake-ups.
+    fn receive_timeout(&self) -> Duration {
+        if !self.threaded {
+            return Duration::from_millis(5);
+        }
+        let now = self.clock.now();
+        match lock(&self.heartbeat).next_deadline() {
+            Some(d) => (d.saturating_duration_since(now) + Duration::from_micros(1)).min(THREADED_IDLE),
+            None => THREADED_IDLE,
+        }
+    }
+
     fn receive_loop(self: Arc<Self>) {
         // A closed transport fails every receive: one line when it starts, a summary every
         // few seconds, one line when it works again.
         let mut failures = failure_log::FailureLog::new("CAN receive", Duration::from_secs(5));
         let bus = self.bus.describe();
         while self.running.load(Ordering::Acquire) {
-            match self.bus.recv(Duration::from_millis(5)) {
+            match self.bus.recv(self.receive_timeout()) {
                 Ok(r) => {
-                    failures.succeed(Instant::now(), &bus);
+                    failures.succeed(self.clock.now(), &bus);
                     if let Some(r) = r {
                         self.dispatch(r);
                     }
                 }
                 Err(e) => {
                     self.stats.transport_errors.fetch_add(1, Ordering::Relaxed);
-                    failures.fail(Instant::now(), &e, &bus);
-                    std::thread::sleep(Duration::from_millis(20));
+                    failures.fail(self.clock.now(), &e, &bus);
+                    if self.threaded {
+                        self.clock.sleep(Duration::from_millis(20));
+                    } else {
+                        std::thread::sleep(Duration::from_millis(20));
+                    }
                 }
             }
             let lost = lock(&self.heartbeat).poll(self.clock.now());
@@ -269,6 +331,9 @@ impl Inner {
         }
     }
 }
+
+/// Longest park of the receive thread on a threaded clock.
+const THREADED_IDLE: Duration = Duration::from_millis(100);
 
 /// A CANopen master on one CAN bus. All methods take `&self` and are thread-safe.
 pub struct Master {
@@ -282,25 +347,50 @@ impl Master {
         Self::with_clock(bus, SystemClock::shared())
     }
 
-    /// Starts a master on `bus` whose SDO time-outs and heartbeat monitoring run on `clock`.
+    /// Starts a master on `bus` whose SDO and LSS time-outs, `wait_boot`/`wait_state` and
+    /// heartbeat monitoring run on `clock`, for one thread of control.
     ///
     /// On a [`motus_clock::VirtualClock`] the bus must be an in-process pair
     /// ([`motus_can::PairBus`]) whose peer answers inside `send`: a transfer waits for an
     /// answer at most its remaining time-out of *wall* time (a liveness bound; the answer is
     /// normally already queued), then jumps the clock to the deadline and fails on virtual
     /// time. The receive thread only reads the clock. Frames' [`Received::at`] must be in
-    /// the clock's time (the pair stamps them so).
+    /// the clock's time (the pair stamps them so). The heartbeat and SYNC producers sleep on
+    /// the clock, so on a virtual clock they need [`Self::with_threaded_clock`].
     pub fn with_clock(bus: Arc<dyn CanBus>, clock: SharedClock) -> Master {
+        Self::make(bus, clock, false)
+    }
+
+    /// Starts a master on `bus` whose threads take part in `clock`: a
+    /// [`motus_clock::VirtualClock::threaded`] clock shared with a test, a driver, a
+    /// watchdog and a simulator thread (or the system clock).
+    ///
+    /// Its threads (the receive thread, [`Self::start_heartbeat`], [`Self::start_sync`])
+    /// start with [`motus_clock::spawn`] and wait on the clock; every wait for something
+    /// another thread delivers (an SDO or LSS answer, a boot-up or state in
+    /// [`Self::wait_state`], a [`ClockReceiver`]) *parks* on the clock until its deadline
+    /// and is woken at the instant of the delivery, so time moves on while all wait and
+    /// stands still while a delivery is under way. A lost heartbeat is reported at the
+    /// instant the consumer time runs out. The bus must wake the receive thread the same
+    /// way ([`motus_can::PairBus::threaded`]), or be a real one on the system clock.
+    pub fn with_threaded_clock(bus: Arc<dyn CanBus>, clock: SharedClock) -> Master {
+        Self::make(bus, clock, true)
+    }
+
+    fn make(bus: Arc<dyn CanBus>, clock: SharedClock, threaded: bool) -> Master {
         let inner = Arc::new(Inner {
             bus,
             clock,
+            threaded,
             running: AtomicBool::new(true),
+            rx_thread: Mutex::default(),
             sdo_timeout: Mutex::new(Duration::from_millis(500)),
             lss_timeout: Mutex::new(Duration::from_millis(500)),
             sdo_waiters: Mutex::default(),
             sdo_locks: Mutex::default(),
             nodes: Mutex::default(),
             nodes_changed: Condvar::new(),
+            node_waiters: Mutex::default(),
             heartbeat: Mutex::default(),
             event_subs: Mutex::default(),
             pdo_subs: Mutex::default(),
@@ -311,15 +401,20 @@ impl Master {
             sdo_latency: spin_wait::AnswerLatency::new(),
         });
         let rx = Arc::clone(&inner);
-        let rx_thread = std::thread::Builder::new()
-            .name("canopen-master-rx".into())
-            .spawn(move || {
-                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
-                rx.receive_loop()
-            })
-            .map_err(|e| tracing::error!(error = %e, "cannot spawn the receive thread"))
-            .ok();
+        let builder = std::thread::Builder::new().name("canopen-master-rx".into());
+        let rx_thread = motus_clock::spawn(&inner.clock, builder, move || {
+            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Device);
+            rx.receive_loop()
+        })
+        .map_err(|e| tracing::error!(error = %e, "cannot spawn the receive thread"))
+        .ok();
+        *lock(&inner.rx_thread) = rx_thread.as_ref().map(|h| h.thread().clone());
         Master { inner, rx_thread }
+    }
+
+    /// Whether this master's threads take part in its clock ([`Self::with_threaded_clock`]).
+    pub fn is_threaded(&self) -> bool {
+        self.inner.threaded
     }
 
     /// Sends an NMT command to `node` (0 = all nodes).
@@ -345,15 +440,32 @@ impl Master {
     /// Receives every frame whose COB-ID matches `filter` (from now on).
     pub fn subscribe(&self, filter: impl Into<CobFilter>) -> Receiver<Received> {
         let (tx, rx) = channel();
-        lock(&self.inner.pdo_subs).push((filter.into(), tx));
+        lock(&self.inner.pdo_subs).push((filter.into(), Waiter::new(tx, None)));
         rx
     }
 
     /// Receives every [`MasterEvent`] from now on.
     pub fn events(&self) -> Receiver<MasterEvent> {
         let (tx, rx) = channel();
-        lock(&self.inner.event_subs).push(tx);
+        lock(&self.inner.event_subs).push(Waiter::new(tx, None));
         rx
+    }
+
+    /// [`Self::subscribe`] with time-outs on the master's clock (a thread taking part in a
+    /// threaded clock is woken at the instant a frame is delivered; see [`ClockReceiver`]).
+    pub fn subscribe_on_clock(&self, filter: impl Into<CobFilter>) -> ClockReceiver<Received> {
+        let (tx, rx) = channel();
+        let slot = Arc::new(WakeSlot::default());
+        lock(&self.inner.pdo_subs).push((filter.into(), Waiter::new(tx, Some(Arc::clone(&slot)))));
+        ClockReceiver::new(rx, slot, Arc::clone(&self.inner.clock), self.inner.threaded)
+    }
+
+    /// [`Self::events`] with time-outs on the master's clock (see [`ClockReceiver`]).
+    pub fn events_on_clock(&self) -> ClockReceiver<MasterEvent> {
+        let (tx, rx) = channel();
+        let slot = Arc::new(WakeSlot::default());
+        lock(&self.inner.event_subs).push(Waiter::new(tx, Some(Arc::clone(&slot))));
+        ClockReceiver::new(rx, slot, Arc::clone(&self.inner.clock), self.inner.threaded)
     }
 
     /// Monitors `node`'s heartbeat: [`MasterEvent::HeartbeatLost`] once when none arrived
@@ -361,6 +473,7 @@ impl Master {
     /// [`MasterEvent::HeartbeatRecovered`]. A zero time stops monitoring.
     pub fn monitor_heartbeat(&self, node: u8, consumer_time: Duration) {
         lock(&self.inner.heartbeat).monitor(node, consumer_time, self.inner.clock.now());
+        self.inner.wake_receiver();
     }
 
     /// The NMT state `node` last reported (boot-up or heartbeat).
@@ -386,6 +499,42 @@ impl Master {
         lock(&self.inner.heartbeat).is_lost(node)
     }
 
+    /// Waits until `done` holds for the node table, at most `timeout` on the master's clock
+    /// (threaded: parked on it, woken by every heartbeat and boot-up; otherwise blocked for
+    /// the time-out of wall time, and a time-out moves the clock to the deadline, as an
+    /// SDO time-out does). True if it holds.
+    fn wait_nodes(&self, timeout: Duration, done: impl Fn(&NodeTable) -> bool) -> bool {
+        let inner = &self.inner;
+        let clock = &*inner.clock;
+        let now = clock.now();
+        let deadline = now.checked_add(timeout).unwrap_or(now + Duration::from_secs(86_400));
+        if inner.threaded {
+            let me = std::thread::current();
+            lock(&inner.node_waiters).push(me.clone());
+            let held = loop {
+                if done(&lock(&inner.nodes)) {
+                    break true;
+                }
+                if clock.now() >= deadline {
+                    break false;
+                }
+                clock.park_until(deadline);
+            };
+            lock(&inner.node_waiters).retain(|t| t.id() != me.id());
+            return held;
+        }
+        let guard = lock(&inner.nodes);
+        let (_g, res) = inner
+            .nodes_changed
+            .wait_timeout_while(guard, timeout, |t| !done(t))
+            .unwrap_or_else(|p| p.into_inner());
+        if res.timed_out() {
+            clock.sleep_until(deadline);
+            return false;
+        }
+        true
+    }
+
     /// Waits for a boot-up message of `node` received after this call.
     pub fn wait_boot(&self, node: u8, timeout: Duration) -> Result<(), MasterError> {
         let before = self.boot_count(node);
@@ -396,13 +545,7 @@ impl Master {
     /// started ([`Self::boot_count`]); returns at once if it has.
     pub fn wait_boots(&self, node: u8, count: u64, timeout: Duration) -> Result<(), MasterError> {
         let boots = |t: &NodeTable| t.get(node).map_or(0, |e| e.boots);
-        let guard = lock(&self.inner.nodes);
-        let (_g, res) = self
-            .inner
-            .nodes_changed
-            .wait_timeout_while(guard, timeout, |t| boots(t) < count)
-            .unwrap_or_else(|p| p.into_inner());
-        if res.timed_out() {
+        if !self.wait_nodes(timeout, |t| boots(t) >= count) {
             return Err(MasterError::NodeTimeout { node, what: "boot-up".into(), timeout });
         }
         Ok(())
@@ -410,13 +553,7 @@ impl Master {
 
     /// Waits until `node` reports `state` in a heartbeat (returns at once if it already did).
     pub fn wait_state(&self, node: u8, state: NmtState, timeout: Duration) -> Result<(), MasterError> {
-        let guard = lock(&self.inner.nodes);
-        let (_g, res) = self
-            .inner
-            .nodes_changed
-            .wait_timeout_while(guard, timeout, |t| t.state(node) != Some(state))
-            .unwrap_or_else(|p| p.into_inner());
-        if res.timed_out() {
+        if !self.wait_nodes(timeout, |t| t.state(node) == Some(state)) {
             return Err(MasterError::NodeTimeout {
                 node,
                 what: format!("heartbeat in state {state}"),
@@ -453,7 +590,8 @@ impl Drop for Master {
     fn drop(&mut self) {
         self.inner.running.store(false, Ordering::Release);
         if let Some(h) = self.rx_thread.take() {
-            let _ = h.join();
+            self.inner.wake_receiver();
+            let _ = motus_clock::while_blocked(&*self.inner.clock, || h.join());
         }
     }
 }

@@ -15,6 +15,7 @@ use crate::pdo::{PdoConfig, PdoDirection};
 use crate::sdo_client::{SdoError, SdoStep, SdoTransfer};
 
 use super::spin_wait::WaitPlan;
+use super::wake::Waiter;
 use super::{lock, Inner, Master};
 
 /// What [`Master::scan`] found about one node.
@@ -67,7 +68,7 @@ impl Inner {
         let node_lock = self.node_lock(node);
         let _serial = lock(&node_lock);
         let (tx, rx) = channel();
-        lock(&self.sdo_waiters).insert(node, tx);
+        lock(&self.sdo_waiters).insert(node, Waiter::new(tx, self.wake_slot()));
         let _guard = WaiterGuard { inner: self, node };
         let clock = &*self.clock;
         let (mut t, first) = start(clock.now())?;
@@ -83,7 +84,13 @@ impl Inner {
             let deadline = t.deadline().unwrap_or_else(|| clock.now());
             let wall_deadline = Instant::now() + deadline.saturating_duration_since(clock.now());
             let (sent_at, wall_sent, plan) = unanswered.unwrap_or((deadline, wall_deadline, WaitPlan::SLEEP));
-            let step = match self.sdo_latency.recv(&rx, plan, wall_sent, wall_deadline) {
+            let answer = if self.threaded {
+                // Parked on the clock until the answer is delivered or the deadline.
+                self.recv_until(&rx, deadline)
+            } else {
+                self.sdo_latency.recv(&rx, plan, wall_sent, wall_deadline)
+            };
+            let step = match answer {
                 Ok(r) => {
                     if unanswered.take().is_some() {
                         self.sdo_latency.record_bus(r.at.saturating_duration_since(sent_at));
@@ -145,12 +152,13 @@ impl Inner {
         }
         let guards: Vec<_> = node_locks.iter().map(|(i, l)| (*i, lock(l))).collect();
         let (tx, rx) = channel();
+        let waiter = Waiter::new(tx, self.wake_slot());
         let mut active: HashMap<u8, (usize, SdoTransfer)> = HashMap::new();
         let mut waiter_guards = Vec::new();
         let mut first_frames = Vec::with_capacity(guards.len());
         for (i, _) in &guards {
             let Some(&(node, index, sub)) = requests.get(*i) else { continue };
-            lock(&self.sdo_waiters).insert(node, tx.clone());
+            lock(&self.sdo_waiters).insert(node, waiter.clone());
             waiter_guards.push(WaiterGuard { inner: self, node });
             match SdoTransfer::upload(node, index, sub, self.clock.now(), timeout) {
                 Ok((t, first)) => {
@@ -184,7 +192,12 @@ impl Inner {
             let next = active.values().filter_map(|(_, t)| t.deadline()).min();
             let deadline = next.unwrap_or_else(|| clock.now());
             let wall_deadline = Instant::now() + deadline.saturating_duration_since(clock.now());
-            let (node, step) = match self.sdo_latency.recv(&rx, plan, wall_sent, wall_deadline) {
+            let answer = if self.threaded {
+                self.recv_until(&rx, deadline)
+            } else {
+                self.sdo_latency.recv(&rx, plan, wall_sent, wall_deadline)
+            };
+            let (node, step) = match answer {
                 Ok(r) => {
                     if std::mem::take(&mut first_answer) {
                         self.sdo_latency.record_bus(r.at.saturating_duration_since(sent_at));
@@ -385,11 +398,25 @@ impl Master {
     ) -> Vec<NodeInfo> {
         let ids: Vec<u8> = nodes.filter(|n| (1..=127).contains(n)).collect();
         let mut found = Vec::new();
+        // The probing threads take part in the clock from their start (as
+        // `motus_clock::spawn` makes them), while this one waits for them.
+        let clock = &*self.inner.clock;
         for chunk in ids.chunks(parallel.max(1)) {
-            let results: Vec<Option<NodeInfo>> = std::thread::scope(|s| {
-                let handles: Vec<_> =
-                    chunk.iter().map(|&n| s.spawn(move || self.probe(n, probe_timeout))).collect();
-                handles.into_iter().map(|h| h.join().ok().flatten()).collect()
+            let results: Vec<Option<NodeInfo>> = motus_clock::while_blocked(clock, || {
+                std::thread::scope(|s| {
+                    let handles: Vec<_> = chunk
+                        .iter()
+                        .map(|&n| {
+                            clock.starting_thread(true);
+                            s.spawn(move || {
+                                clock.join_thread();
+                                clock.starting_thread(false);
+                                self.probe(n, probe_timeout)
+                            })
+                        })
+                        .collect();
+                    handles.into_iter().map(|h| h.join().ok().flatten()).collect()
+                })
             });
             found.extend(results.into_iter().flatten());
         }
