@@ -242,7 +242,7 @@ pub(crate) fn run(bus: &Kv01Bus, shared: &Shared, stop: &AtomicBool, clock: &dyn
         next += cycle;
         let now = clock.now();
         if next > now {
-            clock.sleep_until(next);
+            clock.sleep_until_precise(next);
         } else {
             next = now;
         }

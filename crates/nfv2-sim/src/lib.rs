@@ -14,7 +14,9 @@
 //! virtual clock and read the true trajectory ([`Controller::true_state`]). A [`SimLine`]
 //! serves one or more controllers on any [`motus_serial::Link`] (a pty for tests), with
 //! the address plan and revision of the codec, reply timing (processing delay, baud
-//! pacing, gateway relay) and fault injection (noise, dropped replies).
+//! pacing, gateway relay) and fault injection (noise, dropped replies); on a
+//! [`motus_clock::VirtualClock`] it is served in process, in the host's thread
+//! ([`SimLine::into_sim_link`]), so a driver and its simulator run on virtual time.
 //!
 //! ```
 //! use motus_nfv2_protocol::{Command, CommandCode as C, DriveMode, Frame, Revision};
@@ -47,4 +49,6 @@ pub use config::{ControllerConfig, ManualConfig, MotorConfig, COUNTS_PER_S_PER_S
 pub use controller::{Controller, TrueState, CURRENT_LOOP_SUBSTEPS, REGULATOR_PERIOD};
 pub use error::SimError;
 pub use inputs::LimitSwitch;
-pub use line::{lock, LineError, LineOptions, SharedController, SimClock, SimLine, DEFAULT_REPLY_DELAY};
+pub use line::{
+    lock, Controllers, LineError, LineOptions, SharedController, SimClock, SimLine, DEFAULT_REPLY_DELAY,
+};

@@ -18,6 +18,34 @@
 //! The controllers are shared ([`SharedController`]) so a test can read the true state and
 //! poke inputs while [`SimLine::run`] serves them on another thread; [`SimClock`] gives the
 //! line's time, so a test can bring a controller up to date before poking it.
+//!
+//! Simulated time is on a [`motus_clock::Clock`]: the system clock for [`SimLine::new`], any clock for
+//! [`SimLine::with_clock`]. On a virtual clock the line is served **in process** by
+//! [`SimLine::into_sim_link`]: a [`SimLink`] is the host's link, and the same serve step of
+//! [`SimServer`] runs inline in the host's thread, the answers reaching the host after
+//! their wire time and delays on that clock:
+//!
+//! ```
+//! use motus_clock::VirtualClock;
+//! use motus_nfv2_protocol::{Command, CommandCode as C, Frame, FrameScanner, Revision};
+//! use motus_nfv2_sim::{LineOptions, SimLine};
+//! use motus_serial::{FramedLink, LineSettings, NullLink};
+//! use std::time::Duration;
+//!
+//! let clock = VirtualClock::new();
+//! let null = NullLink::new(LineSettings::n81(57_600));
+//! let options = LineOptions { baud_pacing: true, ..LineOptions::default() };
+//! let line = SimLine::with_clock(Box::new(null), options, clock.shared()).unwrap();
+//! let link = line.into_sim_link();
+//! let mut host = FramedLink::with_clock(Box::new(link), FrameScanner::new(Revision::LATEST), clock.shared());
+//! let query = Frame { address: 1, commands: vec![Command::query(C::ReadDrivesPosition)] };
+//! host.send(&query.encode(Revision::LATEST).unwrap()).unwrap();
+//! let answer = host.receive(Duration::from_millis(100)).unwrap().unwrap();
+//! assert_eq!(answer.int_values(C::ReadDrivesPosition), Some(&[0][..]));
+//! // 7 + 11 bytes at 57600 Bd and the 0.2 ms processing delay, in virtual time.
+//! let wire = LineSettings::n81(57_600);
+//! assert_eq!(clock.since_base(), wire.wire_time(7) + wire.wire_time(11) + Duration::from_micros(200));
+//! ```
 
 use std::collections::BTreeSet;
 use std::io;
@@ -25,8 +53,9 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
+use motus_clock::{SharedClock, SystemClock};
 use motus_nfv2_protocol::{wire_time, AddressPlan, DecodeError, Frame, FrameScanner, Revision, RS485_BAUD};
-use motus_serial::{Answer, FaultConfig, Link, Responder, ServeOptions, SimServer};
+use motus_serial::{Answer, FaultConfig, LineSettings, Link, Responder, ServeOptions, SimLink, SimServer};
 
 use crate::config::ControllerConfig;
 use crate::controller::Controller;
@@ -90,17 +119,31 @@ impl LineOptions {
 /// Errors starting a simulated line.
 pub type LineError = motus_serial::LineError<SimError>;
 
-/// The line's clock: simulated time is the time since the line started.
-#[derive(Debug, Clone, Copy)]
+/// The line's clock: simulated time is the time since the line started, on the line's
+/// [`motus_clock::Clock`].
+#[derive(Debug, Clone)]
 pub struct SimClock {
     start: Instant,
+    clock: SharedClock,
 }
 
 impl SimClock {
     /// Simulated time now.
     #[must_use]
     pub fn now(&self) -> Duration {
-        self.start.elapsed()
+        self.clock.elapsed(self.start)
+    }
+
+    /// The host instant at which simulated time is zero.
+    #[must_use]
+    pub fn start(&self) -> Instant {
+        self.start
+    }
+
+    /// The clock simulated time is on.
+    #[must_use]
+    pub fn clock(&self) -> &SharedClock {
+        &self.clock
     }
 
     /// Simulated time of `instant`.
@@ -115,10 +158,12 @@ pub struct SimLine {
     server: SimServer<FrameScanner>,
     served: Controllers,
     addresses: Vec<u8>,
+    line: LineSettings,
 }
 
-/// The controllers as the line serves them.
-struct Controllers {
+/// The controllers as the line serves them: the line's [`Responder`] (every controller
+/// sees every frame; the addressed one answers).
+pub struct Controllers {
     controllers: Vec<SharedController>,
     revision: Revision,
     reply_delay: Duration,
@@ -126,12 +171,25 @@ struct Controllers {
 }
 
 impl SimLine {
-    /// Powers the controllers on, serving `link`.
+    /// Powers the controllers on, serving `link` on the system clock.
     ///
     /// # Errors
     /// [`LineError::Options`] for bad options, [`LineError::Model`] for a bad
     /// configuration.
     pub fn new(link: Box<dyn Link>, options: LineOptions) -> Result<SimLine, LineError> {
+        Self::with_clock(link, options, SystemClock::shared())
+    }
+
+    /// Powers the controllers on, serving `link` with simulated time on `clock` (see the
+    /// module documentation; for an in-process line, [`SimLine::into_sim_link`]).
+    ///
+    /// # Errors
+    /// As [`SimLine::new`].
+    pub fn with_clock(
+        link: Box<dyn Link>,
+        options: LineOptions,
+        clock: SharedClock,
+    ) -> Result<SimLine, LineError> {
         check(&options)?;
         let controllers = options
             .addresses
@@ -147,7 +205,8 @@ impl SimLine {
             poll: Duration::from_millis(2),
             flush_when_idle: false,
         };
-        let server = SimServer::new(link, FrameScanner::new(options.revision), serve)
+        let line = link.line();
+        let server = SimServer::with_clock(link, FrameScanner::new(options.revision), serve, clock)
             .map_err(|e| LineError::Options(e.to_string()))?;
         let gateway = options.address_plan.gateway.filter(|g| options.addresses.contains(g));
         let served = Controllers {
@@ -156,7 +215,7 @@ impl SimLine {
             reply_delay: options.reply_delay,
             gateway,
         };
-        Ok(SimLine { server, served, addresses: options.addresses })
+        Ok(SimLine { server, served, addresses: options.addresses, line })
     }
 
     /// The controllers with their addresses, in the order of the options.
@@ -175,7 +234,7 @@ impl SimLine {
     /// The line's clock.
     #[must_use]
     pub fn clock(&self) -> SimClock {
-        SimClock { start: self.server.start() }
+        SimClock { start: self.server.start(), clock: Arc::clone(self.server.clock()) }
     }
 
     /// The serve loop (answers sent, the request decoder's statistics, simulated time).
@@ -184,12 +243,31 @@ impl SimLine {
         &self.server
     }
 
+    /// The line served in process instead (see the module documentation): the host's
+    /// link, at the line settings of the link the line was made with (a
+    /// [`motus_serial::NullLink`] will do), serving the controllers inline on the line's
+    /// clock with the same options (pacing, delays, faults and their seed). The host's
+    /// bus master or framed link must wait on the same clock ([`SimLink::clock`]); the
+    /// controllers stay shared ([`SimLine::controllers`], [`SimLink::responder`]).
+    #[must_use]
+    pub fn into_sim_link(self) -> SimLink<FrameScanner, Controllers> {
+        SimLink::new(self.server, Arc::new(Mutex::new(self.served)), self.line)
+    }
+
     /// Serves the line until `stop` is set.
     ///
     /// # Errors
     /// An IO error of the link.
     pub fn run(&mut self, stop: &AtomicBool) -> io::Result<()> {
         self.server.run(&mut self.served, stop)
+    }
+}
+
+impl Controllers {
+    /// The controllers, in the order of the line's addresses.
+    #[must_use]
+    pub fn controllers(&self) -> &[SharedController] {
+        &self.controllers
     }
 }
 

@@ -228,3 +228,26 @@ fn regulators_are_set_and_used() {
     rig.regulator(C::SetSpeedRegulator, Regulator { p: 300, i: 10, d: 0, t: 0 });
     assert_eq!(rig.c.regulators()[1].p, 300);
 }
+
+#[test]
+fn the_truth_trace_keeps_every_cycle_however_far_one_advances() {
+    let mut rig = Rig::new();
+    rig.mode(DriveMode::Position);
+    rig.set(C::SetDrivesPosition, 20_000);
+    rig.c.trace_truth(Some(100));
+    let mut stepped = Vec::new();
+    let mut twin = rig.c.clone();
+    // One jump of 250 ms keeps the last 100 cycles, each equal to a cycle-by-cycle run.
+    rig.run_ms(250);
+    for ms in 1..=250u64 {
+        twin.advance_to(std::time::Duration::from_millis(ms));
+        stepped.push(twin.true_state());
+    }
+    let trace = rig.c.take_truth_trace();
+    assert_eq!(trace.len(), 100);
+    assert_eq!(trace, stepped[150..]);
+    assert!(rig.c.take_truth_trace().is_empty(), "taken");
+    rig.c.trace_truth(None);
+    rig.run_ms(10);
+    assert!(rig.c.take_truth_trace().is_empty(), "stopped");
+}

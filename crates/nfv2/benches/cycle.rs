@@ -86,6 +86,10 @@ fn run(packing: Packing, seconds: u64) {
         s.missed_answers,
         s.cycles
     );
+    println!(
+        "REALTIME nfv2.cycle.{packing}.of_limit {:.1} %",
+        s.mean.as_secs_f64() / limit.as_secs_f64() * 100.0
+    );
     if packing == Packing::Packed {
         let two_ms = limit <= Duration::from_millis(2);
         println!(
@@ -113,6 +117,9 @@ fn main() {
     if filter.is_empty() || "cycle".contains(&filter) {
         run(Packing::Packed, seconds);
         run(Packing::Unpacked, seconds);
+    }
+    if filter.is_empty() || "where_at_t".contains(&filter) {
+        where_at_t_on_real_time();
     }
     let mut c = Criterion::default().configure_from_args();
     let bytes = answer_bytes();
@@ -165,4 +172,120 @@ fn main() {
     let query = t0 + Duration::from_micros(15_000 * 6000 + 7_300);
     c.bench_function("position_at", |b| b.iter(|| history.position_at(black_box(query))));
     c.final_summary();
+}
+
+/// "Where was the head at t" on real time: the pan-tilt head tracks a sine (pan 20 deg at
+/// 0.2 Hz, tilt 15 deg at 0.6 Hz, beyond its limits) over a real pty at 57600 Bd with baud
+/// pacing against two simulated 1209A, for `MOTUS_NFV2_WHERE_SECONDS` (20 s by default); every
+/// 37 ms it is asked where it was 10-160 ms ago (a camera frame's exposure), and each answer
+/// is compared with the simulator's true trajectory. Target: within 0.05 deg, at least 80 %
+/// of the questions answered (docs/decisions.md, "Where at t"). The functional tests run the
+/// same head on virtual time; this is the figure on the host's real time.
+#[allow(clippy::indexing_slicing)]
+fn where_at_t_on_real_time() {
+    use motus_nfv2::{PanTilt, PanTiltConfig, TargetPoint};
+    use motus_nfv2_sim::lock;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::time::Instant;
+
+    /// Counts per degree of the head's axes.
+    const K: f64 = 200_000.0 / 360.0;
+    let seconds: f64 =
+        std::env::var("MOTUS_NFV2_WHERE_SECONDS").ok().and_then(|s| s.parse().ok()).unwrap_or(20.0);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("nfv2-where");
+    let pty = PtyLink::create(Some(&path), LineSettings::n81(RS485_BAUD)).unwrap();
+    let options = LineOptions { addresses: vec![1, 2], baud_pacing: true, ..LineOptions::default() };
+    let line = SimLine::new(Box::new(pty), options).unwrap();
+    let controllers: Vec<_> = line.controllers().into_iter().map(|(_, c)| c).collect();
+    let sim_clock = line.clock();
+    // Near the HOME edges, to keep the homing short.
+    for (c, at) in controllers.iter().zip([-18_000.0, -19_000.0]) {
+        lock(c).place_axis(at).unwrap();
+    }
+    let _line = ServeThread::spawn("nfv2-sim", line, SimLine::run).unwrap();
+    let link = SerialLink::open(path.to_str().unwrap(), RS485_BAUD).unwrap();
+    let config = BusConfig { margin: Duration::from_millis(3), retries: 2 };
+    let bus = Nfv2Bus::new(Arc::new(BusMaster::new(Box::new(link), config)));
+    let pt = PanTilt::start(bus, PanTiltConfig::default()).unwrap();
+    pt.home().unwrap();
+    let n = (seconds * 50.0) as usize;
+    let points: Vec<TargetPoint> = (0..=n)
+        .map(|i| {
+            let t = i as f64 / 50.0;
+            TargetPoint {
+                t,
+                pan_deg: 20.0 * (std::f64::consts::TAU * 0.2 * t).sin(),
+                tilt_deg: 15.0 * (std::f64::consts::TAU * 0.6 * t + 0.5).sin(),
+            }
+        })
+        .collect();
+    pt.goto(points[0].pan_deg, points[0].tilt_deg).unwrap();
+    pt.wait_idle(Duration::from_secs(10)).unwrap();
+
+    // The true trajectory, in the drives' counter coordinates: (simulated time, counts).
+    let stop = Arc::new(AtomicBool::new(false));
+    let recorder = {
+        let (stop, controllers, sim_clock) = (Arc::clone(&stop), controllers.clone(), sim_clock.clone());
+        std::thread::spawn(move || {
+            let mut out: Vec<Vec<(Duration, f64)>> = vec![Vec::new(); controllers.len()];
+            while !stop.load(Ordering::Relaxed) {
+                for (c, rec) in controllers.iter().zip(out.iter_mut()) {
+                    let mut g = lock(c);
+                    g.advance_to(sim_clock.now());
+                    let s = g.true_state();
+                    drop(g);
+                    if rec.last().is_some_and(|l| l.0 >= s.time) {
+                        continue;
+                    }
+                    let offset = s.counter as f64 - s.position_counts.floor();
+                    rec.push((s.time, s.position_counts + offset));
+                }
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            out
+        })
+    };
+    let feed = pt.track(points).unwrap();
+    let end = feed.origin() + Duration::from_secs_f64(seconds);
+    let (mut wheres, mut asked) = (Vec::new(), 0usize);
+    let mut k = 0u64;
+    while Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(37));
+        k += 1;
+        let at = Instant::now() - Duration::from_millis(10 + (k * 7) % 150);
+        asked += 1;
+        if let Ok(pos) = pt.where_at(at) {
+            wheres.push((at, pos));
+        }
+    }
+    pt.wait_idle(Duration::from_secs(10)).unwrap();
+    stop.store(true, Ordering::Relaxed);
+    let truth = recorder.join().unwrap();
+    // The true position at simulated time t, interpolated between regulator cycles.
+    let truth_at = |rec: &[(Duration, f64)], t: Duration| -> Option<f64> {
+        let i = rec.partition_point(|r| r.0 <= t);
+        let (a, b) = (rec.get(i.checked_sub(1)?)?, rec.get(i)?);
+        if b.0 - a.0 > Duration::from_millis(5) {
+            return None;
+        }
+        let f = (t - a.0).as_secs_f64() / (b.0 - a.0).as_secs_f64().max(1e-9);
+        Some(a.1 + (b.1 - a.1) * f)
+    };
+    let (mut worst, mut compared) = (0.0f64, 0usize);
+    for (at, (pan, tilt)) in &wheres {
+        let t = sim_clock.at(*at);
+        let (Some(tp), Some(tt)) = (truth_at(&truth[0], t), truth_at(&truth[1], t)) else { continue };
+        worst = worst.max((pan - tp / K).abs().max((tilt - tt / K).abs()));
+        compared += 1;
+    }
+    let answered = 100.0 * wheres.len() as f64 / asked.max(1) as f64;
+    println!(
+        "where-at-t on real time, sine tracked {seconds} s: {asked} questions, {} answered ({answered:.1} %), \
+         {compared} compared with the truth, worst error {worst:.4} deg",
+        wheres.len()
+    );
+    assert!(compared > 10, "where-at-t: only {compared} answers compared with the truth");
+    println!("REALTIME nfv2.where.worst {worst:.4} deg");
+    println!("REALTIME nfv2.where.answered {answered:.1} %");
 }

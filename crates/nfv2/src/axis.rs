@@ -95,7 +95,8 @@ impl Nfv2Axis {
         Self::start(bus, scheduler, config)
     }
 
-    /// Runs a scheduler with this one drive on `bus`; the axis owns it.
+    /// Runs a scheduler with this one drive on `bus` (on the clock of its bus master); the
+    /// axis owns it.
     ///
     /// # Errors
     /// Starting the scheduler, or a bad configuration.
@@ -224,14 +225,15 @@ impl Nfv2Axis {
     }
 
     fn snapshot_with_sample(&self) -> Result<crate::DriveSnapshot, AxisError> {
-        let t0 = Instant::now();
+        let clock = self.drive.clock();
+        let t0 = clock.now();
         let timeout = self.scheduler.as_ref().map_or(Duration::from_secs(1), |s| s.config().confirm_timeout);
         loop {
             let s = self.drive.snapshot();
             if s.position.is_some() && s.status.is_some() {
                 return Ok(s);
             }
-            if t0.elapsed() > timeout {
+            if clock.elapsed(t0) > timeout {
                 return Err(AxisError::Timeout {
                     axis: self.name.clone(),
                     timeout,
@@ -239,7 +241,7 @@ impl Nfv2Axis {
                     detail: "; no position and status reading yet".into(),
                 });
             }
-            std::thread::sleep(Duration::from_millis(2));
+            clock.sleep(Duration::from_millis(2));
         }
     }
 }

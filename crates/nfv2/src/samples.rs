@@ -544,7 +544,7 @@ mod tests {
             (motus_nfv2_protocol::wire_time(15, 57_600), motus_nfv2_protocol::wire_time(19, 57_600));
         let c = latch_correction(rq, an, Duration::from_micros(200), Duration::from_micros(500));
         assert_eq!(c.as_micros(), 947);
-        let t0 = Instant::now();
+        let t0 = motus_clock::VirtualClock::new().base();
         let s = PositionSample::new(t0, t0 + Duration::from_millis(6), 0, c);
         assert_eq!(s.midpoint() - s.at(), c);
         // Never before the request.
@@ -554,7 +554,7 @@ mod tests {
 
     #[test]
     fn interpolates_between_samples_and_refuses_outside() {
-        let t0 = Instant::now() + Duration::from_secs(1);
+        let t0 = motus_clock::VirtualClock::new().base() + Duration::from_secs(1);
         let mut h = SampleHistory::new(3, Duration::from_millis(5), Duration::from_millis(50));
         assert_eq!(h.position_at(t0), Err(WhereError::NoSamples));
         h.push(sample(t0, 0, 0));
@@ -590,7 +590,7 @@ mod tests {
     fn the_local_fit_follows_curvature_that_a_straight_line_cuts() {
         // x = 4 t² counts (t in ms): a constant acceleration, samples every 15 ms.
         let x = |t: f64| 4.0 * t * t;
-        let t0 = Instant::now();
+        let t0 = motus_clock::VirtualClock::new().base();
         let mut h = SampleHistory::new(64, Duration::from_millis(5), Duration::from_millis(40));
         for k in 0..8 {
             h.push(exchange(t0, 15.0 * f64::from(k), 5.5, x));
@@ -619,7 +619,7 @@ mod tests {
         // 30 counts/ms with curvature; one exchange held up by the host: its answer was
         // decoded 6 ms late, so its midpoint is 3 ms after the instant its value stands for.
         let x = |t: f64| 30.0 * t + 0.2 * t * t;
-        let t0 = Instant::now();
+        let t0 = motus_clock::VirtualClock::new().base();
         let mut h = SampleHistory::new(64, Duration::from_millis(5), Duration::from_millis(40));
         for k in 0..8u32 {
             let at = 15.0 * f64::from(k);
@@ -636,7 +636,7 @@ mod tests {
     fn a_held_up_sample_counts_as_missed() {
         // 30 counts/ms with curvature, samples every 15 ms.
         let x = |t: f64| 30.0 * t + 0.2 * t * t;
-        let t0 = Instant::now();
+        let t0 = motus_clock::VirtualClock::new().base();
         let mut h = SampleHistory::new(64, Duration::from_millis(10), Duration::from_millis(40));
         for k in 0..6u32 {
             h.push(exchange(t0, 15.0 * f64::from(k), 5.5, x));
@@ -677,7 +677,7 @@ mod tests {
         // The axis stands at 5000 counts (dithering by a count) while the host stalls every
         // exchange by 5 ms, then starts to move at 30 counts/ms from 90 ms on.
         let x = |t: f64| if t < 90.0 { 5000.0 + (t / 15.0) % 2.0 } else { 5000.0 + 30.0 * (t - 90.0) };
-        let t0 = Instant::now();
+        let t0 = motus_clock::VirtualClock::new().base();
         let mut h = SampleHistory::new(64, Duration::from_millis(10), Duration::from_millis(40));
         for k in 0..3u32 {
             h.push(exchange(t0, 15.0 * f64::from(k), 5.5, x));
@@ -705,7 +705,7 @@ mod tests {
     #[test]
     fn one_exchange_too_quick_to_be_true_does_not_make_the_others_held_up() {
         let x = |t: f64| 30.0 * t;
-        let t0 = Instant::now();
+        let t0 = motus_clock::VirtualClock::new().base();
         let mut h = SampleHistory::new(64, Duration::from_millis(10), Duration::from_millis(40));
         for k in 0..8u32 {
             let at = 15.0 * f64::from(k);
@@ -719,7 +719,7 @@ mod tests {
 
     #[test]
     fn gate_rejects_a_corrupt_low_byte_and_follows_a_real_jump() {
-        let t0 = Instant::now();
+        let t0 = motus_clock::VirtualClock::new().base();
         let bounds = GateBounds {
             speed: 120_000.0,
             acceleration: 111_112.0,

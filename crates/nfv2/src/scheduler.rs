@@ -24,14 +24,25 @@
 //!
 //! Raw frames from other threads ([`Scheduler::transact`]) interleave between cycle
 //! exchanges on the same bus master.
+//!
+//! # Time
+//! The scheduler reads time and waits through a [`motus_clock::Clock`]: the cycle grid,
+//! the timestamps of requests and answers, the statistics' window, and every wait of its
+//! [`Drive`] handles and of the axes and head built on them. [`Scheduler::start`] takes the
+//! clock of the bus master ([`motus_serial::BusMaster::clock`]: the system clock unless the
+//! master was made with [`motus_serial::BusMaster::with_clock`]), so the line's time-outs and
+//! the cycle run on one clock; [`Scheduler::start_with_clock`] names it. On a threaded
+//! [`motus_clock::VirtualClock`] the cycle thread takes part in the clock's time (it is
+//! started with [`motus_clock::spawn`]), so a driver and an in-process simulator
+//! ([`motus_serial::SimLink`]) run on virtual time.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
+use motus_clock::SharedClock;
 use motus_nfv2_protocol::{Command, CommandCode as C, Frame};
-use motus_serial::sleep_until;
 
 use crate::bus::{Exchanged, Nfv2Bus};
 use crate::drive::runtime::{DriveRuntime, Outcome, Timing};
@@ -120,6 +131,8 @@ pub(crate) struct Inner {
     pub(crate) bus: Nfv2Bus,
     pub(crate) config: SchedulerConfig,
     pub(crate) plan: CyclePlan,
+    /// What the cycle thread and the handles read time from and wait on.
+    pub(crate) clock: SharedClock,
     state: Mutex<State>,
     stop: AtomicBool,
     running: AtomicBool,
@@ -157,7 +170,7 @@ fn steady_frame(address: u8, config: &SchedulerConfig) -> Frame {
 }
 
 impl Scheduler {
-    /// Starts cycling the 1209A drives `drives` on `bus`.
+    /// Starts cycling the 1209A drives `drives` on `bus`, on the clock of its bus master.
     ///
     /// # Errors
     /// [`Nfv2Error::InvalidArgument`] for no drive or a duplicate address,
@@ -167,6 +180,22 @@ impl Scheduler {
         bus: Nfv2Bus,
         drives: Vec<DriveConfig>,
         config: SchedulerConfig,
+    ) -> Result<Scheduler, Nfv2Error> {
+        let clock = Arc::clone(bus.master().clock());
+        Self::start_with_clock(bus, drives, config, clock)
+    }
+
+    /// As [`Scheduler::start`], reading time from and waiting on `clock` (see the module
+    /// documentation; the bus master's own waits stay on its clock, which should be the
+    /// same): the cycle thread is started with [`motus_clock::spawn`].
+    ///
+    /// # Errors
+    /// As [`Scheduler::start`].
+    pub fn start_with_clock(
+        bus: Nfv2Bus,
+        drives: Vec<DriveConfig>,
+        config: SchedulerConfig,
+        clock: SharedClock,
     ) -> Result<Scheduler, Nfv2Error> {
         if drives.is_empty() {
             return Err(Nfv2Error::InvalidArgument("the scheduler needs at least one drive".into()));
@@ -188,27 +217,28 @@ impl Scheduler {
         }
         tracing::info!("{plan}");
         let order: Vec<u8> = drives.iter().map(|d| d.address).collect();
+        let now = clock.now();
         let runtimes = drives.into_iter().map(|d| {
             let rev = bus.revision(d.address);
-            DriveRuntime::new(d, rev, &config)
+            DriveRuntime::new(d, rev, &config, now)
         });
-        let state = State { drives: runtimes.collect(), recorder: Recorder::new(&order), seq: 0 };
+        let state = State { drives: runtimes.collect(), recorder: Recorder::new(&order, now), seq: 0 };
         let inner = Arc::new(Inner {
             bus,
             config,
             plan,
+            clock,
             state: Mutex::new(state),
             stop: AtomicBool::new(false),
             running: AtomicBool::new(true),
         });
         let worker = inner.clone();
-        let thread = std::thread::Builder::new()
-            .name("nfv2-scheduler".into())
-            .spawn(move || {
-                motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
-                run(&worker)
-            })
-            .map_err(|e| Nfv2Error::Open { path: "scheduler thread".into(), reason: e.to_string() })?;
+        let builder = std::thread::Builder::new().name("nfv2-scheduler".into());
+        let thread = motus_clock::spawn(&inner.clock, builder, move || {
+            motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
+            run(&worker)
+        })
+        .map_err(|e| Nfv2Error::Open { path: "scheduler thread".into(), reason: e.to_string() })?;
         Ok(Scheduler { inner, thread: Mutex::new(Some(thread)) })
     }
 
@@ -246,16 +276,24 @@ impl Scheduler {
         &self.inner.bus
     }
 
+    /// The clock the scheduler and its drives read time from and wait on.
+    #[must_use]
+    pub fn clock(&self) -> &SharedClock {
+        &self.inner.clock
+    }
+
     /// Statistics since the start or the last [`Scheduler::reset_stats`].
     #[must_use]
     pub fn stats(&self) -> CycleStats {
         let p = &self.inner.plan;
-        self.inner.lock().recorder.snapshot(p.requested, p.min_cycle, p.baud)
+        let now = self.inner.clock.now();
+        self.inner.lock().recorder.snapshot(p.requested, p.min_cycle, p.baud, now)
     }
 
     /// Restarts the statistics window.
     pub fn reset_stats(&self) {
-        self.inner.lock().recorder.reset();
+        let now = self.inner.clock.now();
+        self.inner.lock().recorder.reset(now);
     }
 
     /// Sends a raw frame between two cycle exchanges and returns the answer, if any.
@@ -278,7 +316,9 @@ impl Scheduler {
         self.inner.stop.store(true, Ordering::Relaxed);
         let thread = self.thread.lock().unwrap_or_else(PoisonError::into_inner).take();
         if let Some(t) = thread {
-            let _ = t.join();
+            // The cycle thread may be asleep on the clock: a threaded virtual clock moves
+            // it to its next deadline while this thread waits.
+            let _ = motus_clock::while_blocked(&*self.inner.clock, || t.join());
         }
     }
 }
@@ -291,11 +331,12 @@ impl Drop for Scheduler {
 
 /// The cycle thread.
 fn run(inner: &Inner) {
+    let clock = &*inner.clock;
     let period = inner.plan.effective_cycle();
-    let mut next = Instant::now();
+    let mut next = clock.now();
     let mut cycle: u64 = 0;
     while !inner.stop.load(Ordering::Relaxed) {
-        let start = Instant::now();
+        let start = clock.now();
         let n = {
             let mut st = inner.lock();
             st.recorder.cycle_started(start);
@@ -306,7 +347,7 @@ fn run(inner: &Inner) {
             missed |= exchange_drive(inner, i, cycle, period);
         }
         cycle += 1;
-        let end = Instant::now();
+        let end = clock.now();
         if inner.config.cycle.is_zero() {
             // As fast as the line allows: back to back, no deadline to miss.
             inner.lock().recorder.cycle_ended(false, missed);
@@ -319,7 +360,7 @@ fn run(inner: &Inner) {
         // Cycles stay on their grid: a late cycle starts at once and the following ones
         // catch up; only when a whole period is lost does the grid move.
         next = if end > deadline + period { end } else { deadline };
-        sleep_until(next);
+        clock.sleep_until_precise(next);
     }
     inner.running.store(false, Ordering::Relaxed);
 }
@@ -333,7 +374,7 @@ fn exchange_drive(inner: &Inner, i: usize, cycle: u64, period: Duration) -> bool
         let seq = st.seq;
         // Stagger the occasional queries across drives.
         let Some(d) = st.drives.get_mut(i) else { return false };
-        (d.build(seq, Instant::now(), cycle + i as u64, period, baud, &inner.config), seq)
+        (d.build(seq, inner.clock.now(), cycle + i as u64, period, baud, &inner.config), seq)
     };
     let address = frame.address;
     let rev = inner.bus.revision(address);
@@ -343,9 +384,9 @@ fn exchange_drive(inner: &Inner, i: usize, cycle: u64, period: Duration) -> bool
     };
     let mut missed = false;
     for part in parts {
-        let request_at = Instant::now();
+        let request_at = inner.clock.now();
         let result = inner.bus.exchange(&part, false);
-        let reply_at = Instant::now();
+        let reply_at = inner.clock.now();
         let (outcome, bytes) = match result {
             Ok(Exchanged { answer: Some(a), sent, received }) => (Outcome::Answer(a), sent + received),
             Ok(Exchanged { answer: None, sent, .. }) => (Outcome::Unanswered, sent),

@@ -116,9 +116,10 @@ pub(crate) struct Recorder {
 }
 
 impl Recorder {
-    pub(crate) fn new(addresses: &[u8]) -> Self {
+    /// A window starting at `now`.
+    pub(crate) fn new(addresses: &[u8], now: Instant) -> Self {
         Recorder {
-            since: Instant::now(),
+            since: now,
             last_start: None,
             durations: VecDeque::with_capacity(1024),
             cycles: 0,
@@ -132,10 +133,10 @@ impl Recorder {
         }
     }
 
-    /// Restarts the window.
-    pub(crate) fn reset(&mut self) {
+    /// Restarts the window at `now`.
+    pub(crate) fn reset(&mut self, now: Instant) {
         let addresses: Vec<u8> = self.slaves.iter().map(|s| s.address).collect();
-        *self = Recorder::new(&addresses);
+        *self = Recorder::new(&addresses, now);
     }
 
     /// A cycle starts at `at`.
@@ -165,7 +166,14 @@ impl Recorder {
         self.bytes += n as u64;
     }
 
-    pub(crate) fn snapshot(&self, requested: Duration, min_cycle: Duration, baud: u32) -> CycleStats {
+    /// The statistics of the window up to `now`.
+    pub(crate) fn snapshot(
+        &self,
+        requested: Duration,
+        min_cycle: Duration,
+        baud: u32,
+        now: Instant,
+    ) -> CycleStats {
         let mut sorted: Vec<Duration> = self.durations.iter().copied().collect();
         sorted.sort_unstable();
         let n = sorted.len();
@@ -177,7 +185,7 @@ impl Recorder {
         // Nearest rank: the smallest value with at least 99 % of the cycles at or below it.
         let p99 =
             (n * 99).div_ceil(100).checked_sub(1).and_then(|i| sorted.get(i)).copied().unwrap_or_default();
-        let window = self.since.elapsed();
+        let window = now.saturating_duration_since(self.since);
         let wire_busy = wire_time(usize::try_from(self.bytes).unwrap_or(usize::MAX), baud);
         let missed_answers = self.slaves.iter().map(|s| s.missed).sum();
         let rejected_values = self.slaves.iter().map(|s| s.rejected).sum();
@@ -208,8 +216,8 @@ mod tests {
 
     #[test]
     fn percentiles_and_counters() {
-        let mut r = Recorder::new(&[1, 2]);
-        let t0 = Instant::now();
+        let t0 = motus_clock::VirtualClock::new().base();
+        let mut r = Recorder::new(&[1, 2], t0);
         for i in 0..=100u32 {
             // 99 cycles of 10 ms, then one of 30 ms.
             let at = t0 + Duration::from_millis(u64::from(i) * 10 + if i == 100 { 20 } else { 0 });
@@ -220,13 +228,20 @@ mod tests {
             s.missed = 3;
         }
         r.bytes(5760);
-        let s = r.snapshot(Duration::from_millis(10), Duration::from_millis(9), 57_600);
+        let s = r.snapshot(
+            Duration::from_millis(10),
+            Duration::from_millis(9),
+            57_600,
+            t0 + Duration::from_secs(2),
+        );
         assert_eq!(s.cycles, 101);
         assert_eq!(s.max, Duration::from_millis(30));
         assert_eq!(s.p99, Duration::from_millis(10));
         assert_eq!(s.mean, Duration::from_micros(10_200));
         assert_eq!((s.overruns, s.cycles_with_missed, s.missed_answers), (1, 3, 3));
         assert_eq!(s.wire_busy, Duration::from_secs(1));
+        assert_eq!(s.window, Duration::from_secs(2));
+        assert!((s.utilisation - 0.5).abs() < 1e-9);
         assert!((s.efficiency() - 9.0 / 10.2).abs() < 1e-9);
     }
 }

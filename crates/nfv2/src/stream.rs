@@ -165,7 +165,7 @@ mod tests {
 
     #[test]
     fn feed_forward_plus_correction_clamped() {
-        let start = Instant::now();
+        let start = motus_clock::VirtualClock::new().base();
         let src: SharedSource = Arc::new(Mutex::new(Ramp(start)));
         let link = StreamLink { source: src.clone(), index: 0, max_units: 150, gain: 10.0 };
         let now = start + Duration::from_millis(100);

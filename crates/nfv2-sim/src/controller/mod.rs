@@ -18,7 +18,12 @@
 //! - Over-current (beyond `overcurrent_trip_ma`): bridge off at once, status bit 13
 //!   latched, mode ERROR until the next `SetDrivesMode`.
 //! - No power-stage supply: bridge off, status bit 9; everything else keeps working.
+//!
+//! The true state of every cycle can be kept ([`Controller::trace_truth`]): whoever
+//! advances the controller (a serve loop, an in-process link running ahead to a request's
+//! arrival, a test), no cycle is missed.
 
+use std::collections::VecDeque;
 use std::time::Duration;
 
 use motus_axis::profile::Plan;
@@ -147,6 +152,15 @@ pub struct Controller {
     temperature_c: f64,
     rng: SmallRng,
     published: publish::Published,
+    /// The true states kept, one per cycle ([`Controller::trace_truth`]).
+    truth_trace: Option<TruthTrace>,
+}
+
+/// The true states of the last cycles, at most `capacity`.
+#[derive(Debug, Clone)]
+struct TruthTrace {
+    capacity: usize,
+    states: VecDeque<TrueState>,
 }
 
 /// Cycles over which the speed is measured from the encoder counter.
@@ -220,6 +234,7 @@ impl Controller {
             temperature_c: config.ambient_c,
             rng: SmallRng::seed_from_u64(seed),
             published: publish::Published::default(),
+            truth_trace: None,
             config: config.clone(),
         };
         c.publish();
@@ -287,6 +302,15 @@ impl Controller {
         self.cycles += 1;
         self.time += REGULATOR_PERIOD;
         self.publish();
+        if self.truth_trace.is_some() {
+            let state = self.true_state();
+            if let Some(trace) = &mut self.truth_trace {
+                if trace.states.len() >= trace.capacity {
+                    trace.states.pop_front();
+                }
+                trace.states.push_back(state);
+            }
+        }
     }
 
     /// Reads the encoder counter and measures the speed over the last cycles.

@@ -25,12 +25,13 @@
 //! 0..30 V (± 1 LSB noise). `ReadDeviceVitals`: PSUPP, +24 V, +12 V, +5 V in mV.
 //! `ReadDrivesCurrent`: motor current in mA (signed, with noise).
 
+use std::collections::VecDeque;
 use std::time::Duration;
 
 use motus_nfv2_protocol::{DriveMode, DriveStatus};
 use rand::Rng;
 
-use super::{motion::Family, Controller, Demand};
+use super::{motion::Family, Controller, Demand, TruthTrace};
 use crate::inputs::ANALOG_FULL_SCALE_V;
 
 /// ADC steps of the analog inputs (12 bits).
@@ -168,6 +169,19 @@ impl Controller {
             analog_mv,
             vitals_mv,
         };
+    }
+
+    /// Keeps the true state at the end of every regulator cycle from now on, the newest
+    /// `capacity` of them ([`Controller::take_truth_trace`] collects them); `None` stops
+    /// and drops what was kept.
+    pub fn trace_truth(&mut self, capacity: Option<usize>) {
+        self.truth_trace = capacity.map(|capacity| TruthTrace { capacity, states: VecDeque::new() });
+    }
+
+    /// The true states kept since tracing started or the last call, oldest first (empty
+    /// when not tracing).
+    pub fn take_truth_trace(&mut self) -> Vec<TrueState> {
+        self.truth_trace.as_mut().map(|t| t.states.drain(..).collect()).unwrap_or_default()
     }
 
     /// The simulated truth now.

@@ -16,6 +16,9 @@
 //! | [`Drive::jog`] | SPEED | speed (every cycle), acceleration |
 //! | [`Drive::stop`] / [`Drive::quick_stop`] | unchanged | target = stopping point / speed 0 |
 //! | [`Drive::fault_reset`] | POSITION | hold (leaves ERROR) |
+//!
+//! Every wait polls the shared state on the scheduler's clock ([`Drive::clock`]), so a
+//! drive on a virtual clock waits in virtual time.
 
 mod config;
 pub(crate) mod registers;
@@ -27,6 +30,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use motus_axis::Fault;
+use motus_clock::SharedClock;
 use motus_nfv2_protocol::{DriveStatus, Revision};
 
 use crate::error::Nfv2Error;
@@ -39,6 +43,9 @@ use runtime::DriveRuntime;
 use snapshot::empty;
 pub use snapshot::{DriveSnapshot, IntentKind};
 pub use status::INPUT_ENABLE;
+
+/// How often a wait looks at the state the cycle thread updates.
+const POLL: Duration = Duration::from_millis(1);
 
 /// A handle on one 1209A of a running [`crate::Scheduler`].
 #[derive(Clone)]
@@ -65,6 +72,12 @@ impl Drive {
         self.inner.bus.revision(self.address)
     }
 
+    /// The clock of the drive's scheduler (its waits and timestamps).
+    #[must_use]
+    pub fn clock(&self) -> &SharedClock {
+        &self.inner.clock
+    }
+
     /// The drive's settings.
     #[must_use]
     pub fn config(&self) -> DriveConfig {
@@ -80,7 +93,8 @@ impl Drive {
     #[must_use]
     pub fn snapshot(&self) -> DriveSnapshot {
         let silence = self.inner.config.silence;
-        let mut snap = self.with(|d| d.snapshot(silence)).unwrap_or_else(|_| empty(self.address));
+        let now = self.inner.clock.now();
+        let mut snap = self.with(|d| d.snapshot(silence, now)).unwrap_or_else(|_| empty(self.address));
         if !self.inner.running() {
             snap.faults.push(Fault {
                 kind: motus_axis::FaultKind::CommunicationTimeout,
@@ -108,7 +122,7 @@ impl Drive {
     /// Waits until the values of `regs` were acknowledged.
     fn wait_confirmed(&self, what: &str, regs: &[Reg]) -> Result<(), Nfv2Error> {
         let timeout = self.inner.config.confirm_timeout;
-        let t0 = Instant::now();
+        let t0 = self.inner.clock.now();
         loop {
             self.check_running()?;
             let done = self.with(|d| {
@@ -117,33 +131,33 @@ impl Drive {
             if done {
                 return Ok(());
             }
-            if t0.elapsed() > timeout {
+            if self.inner.clock.elapsed(t0) > timeout {
                 return Err(Nfv2Error::NotConfirmed {
                     address: self.address,
                     what: what.into(),
                     waited: timeout,
                 });
             }
-            std::thread::sleep(Duration::from_millis(1));
+            self.inner.clock.sleep(POLL);
         }
     }
 
     fn wait_sample(&self) -> Result<PositionSample, Nfv2Error> {
         let timeout = self.inner.config.confirm_timeout;
-        let t0 = Instant::now();
+        let t0 = self.inner.clock.now();
         loop {
             self.check_running()?;
             if let Some(s) = self.with(|d| d.history.latest())? {
                 return Ok(s);
             }
-            if t0.elapsed() > timeout {
+            if self.inner.clock.elapsed(t0) > timeout {
                 return Err(Nfv2Error::NotConfirmed {
                     address: self.address,
                     what: "a position reading".into(),
                     waited: timeout,
                 });
             }
-            std::thread::sleep(Duration::from_millis(1));
+            self.inner.clock.sleep(POLL);
         }
     }
 
@@ -170,7 +184,7 @@ impl Drive {
     /// ENABLE ignores a mode change. On failure the drive is set to ERROR again.
     fn wait_out_of_error(&self) -> Result<(), Nfv2Error> {
         let timeout = self.inner.config.confirm_timeout;
-        let t0 = Instant::now();
+        let t0 = self.inner.clock.now();
         loop {
             let (ok, cause) = self.with(|d| {
                 let status = d.status();
@@ -180,7 +194,7 @@ impl Drive {
             if ok {
                 return Ok(());
             }
-            if t0.elapsed() > timeout {
+            if self.inner.clock.elapsed(t0) > timeout {
                 let _ = self.with(DriveRuntime::disable);
                 return Err(Nfv2Error::Device {
                     address: self.address,
@@ -190,7 +204,7 @@ impl Drive {
                     ),
                 });
             }
-            std::thread::sleep(Duration::from_millis(1));
+            self.inner.clock.sleep(POLL);
         }
     }
 
@@ -246,7 +260,7 @@ impl Drive {
         timeout: Duration,
         done: impl Fn(&DriveSnapshot) -> bool,
     ) -> Result<DriveSnapshot, Nfv2Error> {
-        let t0 = Instant::now();
+        let t0 = self.inner.clock.now();
         loop {
             self.check_running()?;
             let s = self.snapshot();
@@ -256,10 +270,10 @@ impl Drive {
             if done(&s) {
                 return Ok(s);
             }
-            if t0.elapsed() > timeout {
+            if self.inner.clock.elapsed(t0) > timeout {
                 return Err(Nfv2Error::WaitTimeout { address: self.address, what: what.into(), timeout });
             }
-            std::thread::sleep(Duration::from_millis(2));
+            self.inner.clock.sleep(POLL * 2);
         }
     }
 
@@ -376,16 +390,16 @@ impl Drive {
             d.inputs_read
         })?;
         let timeout = self.inner.config.confirm_timeout;
-        let t0 = Instant::now();
+        let t0 = self.inner.clock.now();
         while self.with(|d| d.inputs_read)? == before {
-            if t0.elapsed() > timeout {
+            if self.inner.clock.elapsed(t0) > timeout {
                 return Err(Nfv2Error::NotConfirmed {
                     address: self.address,
                     what: "a digital-input reading".into(),
                     waited: timeout,
                 });
             }
-            std::thread::sleep(Duration::from_millis(1));
+            self.inner.clock.sleep(POLL);
         }
         self.with(|d| {
             d.fault_reset().map_err(|reason| Nfv2Error::Device { address: self.address, reason })

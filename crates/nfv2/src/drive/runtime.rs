@@ -90,7 +90,7 @@ pub(crate) struct DriveRuntime {
 }
 
 impl DriveRuntime {
-    pub(crate) fn new(config: DriveConfig, rev: Revision, sc: &SchedulerConfig) -> Self {
+    pub(crate) fn new(config: DriveConfig, rev: Revision, sc: &SchedulerConfig, now: Instant) -> Self {
         DriveRuntime {
             config,
             rev,
@@ -108,7 +108,7 @@ impl DriveRuntime {
             fault: None,
             fault_from_error: false,
             last_answer: None,
-            started: Instant::now(),
+            started: now,
             last_request_len: 15,
             frames: 0,
             stream_log: VecDeque::new(),
@@ -474,9 +474,8 @@ impl DriveRuntime {
         }
     }
 
-    /// The snapshot the handles read.
-    pub(crate) fn snapshot(&self, silence: Duration) -> DriveSnapshot {
-        let now = Instant::now();
+    /// The snapshot the handles read at `now` (silence is measured up to it).
+    pub(crate) fn snapshot(&self, silence: Duration, now: Instant) -> DriveSnapshot {
         let latest = self.history.latest();
         let velocity = self.history.velocity();
         let status = self.status.status();

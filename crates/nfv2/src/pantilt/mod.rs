@@ -215,7 +215,9 @@ impl PanTilt {
         Self::start(bus, config)
     }
 
-    /// Starts the head's scheduler on `bus`.
+    /// Starts the head's scheduler on `bus`. The head's waits and time-lines are on the
+    /// clock of the bus master ([`Scheduler::start`]), virtual time with a master made by
+    /// `motus_serial::BusMaster::with_clock`.
     ///
     /// # Errors
     /// Starting the scheduler (e.g. both axes at one address).
@@ -362,7 +364,7 @@ impl PanTilt {
             return Ok(Duration::ZERO); // nothing moves
         };
         let duration = Duration::from_secs_f64(plan.duration());
-        let start = Instant::now() + self.scheduler.plan().effective_cycle();
+        let start = self.scheduler.clock().now() + self.scheduler.plan().effective_cycle();
         let counts = [p.counts_per_deg(), t.counts_per_deg()];
         let source: SharedSource = Arc::new(Mutex::new(GotoSource::new(start, plan, from, to, counts)));
         self.follow(source)?;
@@ -394,7 +396,7 @@ impl PanTilt {
         self.stop_tracking();
         let from = self.ready(None)?;
         let (p, t) = (&self.config.pan, &self.config.tilt);
-        let origin = Instant::now() + self.scheduler.plan().effective_cycle();
+        let origin = self.scheduler.clock().now() + self.scheduler.plan().effective_cycle();
         let setup = TrackSetup {
             origin,
             dt: self.scheduler.plan().effective_cycle().as_secs_f64(),
@@ -431,9 +433,10 @@ impl PanTilt {
     /// # Errors
     /// A fault, or not done within `timeout`.
     pub fn wait_idle(&self, timeout: Duration) -> Result<(f64, f64), PanTiltError> {
-        let t0 = Instant::now();
+        let clock = self.scheduler.clock();
+        let t0 = clock.now();
         for (name, drive, _) in self.axes() {
-            let left = timeout.saturating_sub(t0.elapsed());
+            let left = timeout.saturating_sub(clock.elapsed(t0));
             drive.wait_idle(left).map_err(drive_err(name))?;
         }
         self.position()

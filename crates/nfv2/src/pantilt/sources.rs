@@ -270,7 +270,7 @@ mod tests {
 
     #[test]
     fn goto_axes_share_one_timeline() {
-        let start = Instant::now();
+        let start = motus_clock::VirtualClock::new().base();
         let plan = synchronised(&[(40.0, 30.0, 120.0), (-10.0, 30.0, 120.0)]).unwrap();
         let mut g = GotoSource::new(start, plan.clone(), [0.0, 5.0], [40.0, -5.0], [100.0, 100.0]);
         let half = start + Duration::from_secs_f64(plan.duration() / 2.0);
@@ -285,7 +285,7 @@ mod tests {
 
     #[test]
     fn track_follows_points_and_settles() {
-        let origin = Instant::now();
+        let origin = motus_clock::VirtualClock::new().base();
         let setup = TrackSetup {
             origin,
             dt: 0.01,

@@ -1,71 +1,93 @@
-//! Simulated 1209A controllers on a real pseudo-terminal, served by a thread, a host bus
-//! opened on the pty's symlink like on a real serial port, and a recorder of the
-//! simulator's true trajectory in the drives' counter coordinates.
+//! Simulated 1209A controllers served in process on virtual time: the driver's bus master
+//! and the simulator's serve step share one threaded [`VirtualClock`] through a
+//! [`SimLink`] (the scheduler's cycle thread and the test thread take part in its time),
+//! and a recorder of the simulator's true trajectory (every regulator cycle) in the
+//! drives' counter coordinates.
+//! A minute of motion takes a second or so of wall time, and no figure depends on the
+//! host's load.
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 
+use motus_clock::{Clock, SharedClock, VirtualClock};
 use motus_nfv2::{Nfv2Bus, SchedulerConfig};
-use motus_nfv2_sim::{lock, LineOptions, SharedController, SimClock, SimLine};
-use motus_serial::{BusConfig, BusMaster, LineSettings, PtyLink, SerialLink, ServeThread};
-use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
-use std::thread::JoinHandle;
+use motus_nfv2_protocol::FrameScanner;
+use motus_nfv2_sim::{lock, Controllers, LineOptions, SharedController, SimClock, SimLine};
+use motus_serial::{BusConfig, BusMaster, LineSettings, NullLink, SimLink};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 pub const BAUD: u32 = 57_600;
-
-/// Tests of one binary run one at a time: each has a simulator and a scheduler spinning
-/// on two cores, and they measure timing.
-pub fn serial() -> MutexGuard<'static, ()> {
-    static LOCK: Mutex<()> = Mutex::new(());
-    LOCK.lock().unwrap_or_else(|p| p.into_inner())
-}
 
 pub fn two_controllers() -> LineOptions {
     LineOptions { addresses: vec![1, 2], ..LineOptions::default() }
 }
 
-/// Stops serving (first field: dropped first) before the folder of its pty goes.
+/// Two controllers with baud pacing (the line takes its wire time).
+pub fn paced() -> LineOptions {
+    LineOptions { addresses: vec![1, 2], baud_pacing: true, ..LineOptions::default() }
+}
+
+/// The simulated line in process, on a threaded virtual clock the calling (test) thread
+/// takes part in.
 pub struct Sim {
-    _line: ServeThread<SimLine>,
-    pub dir: tempfile::TempDir,
-    pub path: PathBuf,
-    pub clock: SimClock,
+    pub clock: VirtualClock,
+    pub shared: SharedClock,
+    /// The line's simulated time (zero when the line started).
+    pub sim_clock: SimClock,
     controllers: Vec<(u8, SharedController)>,
+    link: Mutex<Option<SimLink<FrameScanner, Controllers>>>,
 }
 
 impl Sim {
     pub fn start(options: LineOptions) -> Sim {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("nfv2");
-        let pty = PtyLink::create(Some(&path), LineSettings::n81(BAUD)).unwrap();
-        let line = SimLine::new(Box::new(pty), options).unwrap();
-        let (controllers, clock) = (line.controllers(), line.clock());
-        Sim {
-            _line: ServeThread::spawn("nfv2-sim", line, SimLine::run).unwrap(),
-            dir,
-            path,
-            clock,
-            controllers,
-        }
+        let clock = VirtualClock::threaded();
+        let shared = clock.shared();
+        let null = NullLink::new(LineSettings::n81(BAUD));
+        let line = SimLine::with_clock(Box::new(null), options, shared.clone()).unwrap();
+        let (controllers, sim_clock) = (line.controllers(), line.clock());
+        let link = Mutex::new(Some(line.into_sim_link()));
+        Sim { clock, shared, sim_clock, controllers, link }
     }
 
     pub fn controller(&self, address: u8) -> SharedController {
         self.controllers.iter().find(|(a, _)| *a == address).map(|(_, c)| c.clone()).unwrap()
     }
 
-    /// The host side: the pty's symlink opened as a serial port.
+    /// The host side (once): a bus master on the in-process link and the same clock.
     pub fn bus(&self, margin: Duration) -> Nfv2Bus {
-        let link = SerialLink::open(self.path.to_str().unwrap(), BAUD).unwrap();
-        Nfv2Bus::new(Arc::new(BusMaster::new(Box::new(link), BusConfig { margin, retries: 2 })))
+        let link = self.link.lock().unwrap().take().expect("one bus per simulated line");
+        let master =
+            BusMaster::with_clock(Box::new(link), BusConfig { margin, retries: 2 }, self.shared.clone());
+        Nfv2Bus::new(Arc::new(master))
     }
 
     /// Runs `f` on the controller at `address`, brought up to the line's time first.
     pub fn with<T>(&self, address: u8, f: impl FnOnce(&mut motus_nfv2_sim::Controller) -> T) -> T {
         let c = self.controller(address);
         let mut g = lock(&c);
-        g.advance_to(self.clock.now());
+        g.advance_to(self.sim_clock.now());
         f(&mut g)
+    }
+
+    /// Virtual time now.
+    pub fn now(&self) -> Instant {
+        self.clock.now()
+    }
+
+    /// Waits `d` of virtual time (the scheduler cycles meanwhile).
+    pub fn sleep(&self, d: Duration) {
+        self.clock.sleep(d);
+    }
+
+    /// Polls `f` every 5 ms of virtual time until it is true or `timeout` has passed.
+    pub fn eventually(&self, timeout: Duration, mut f: impl FnMut() -> bool) -> bool {
+        let t0 = self.now();
+        while self.clock.elapsed(t0) < timeout {
+            if f() {
+                return true;
+            }
+            self.sleep(Duration::from_millis(5));
+        }
+        f()
     }
 }
 
@@ -86,47 +108,47 @@ pub struct Truth {
     pub bridge_on: bool,
 }
 
-/// Records every regulator cycle's true state of some controllers from a thread.
+/// Records every regulator cycle's true state of some controllers (the controllers keep
+/// them: [`motus_nfv2_sim::Controller::trace_truth`]).
 pub struct TruthRecorder {
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<Vec<Vec<Truth>>>>,
+    controllers: Vec<SharedController>,
+    sim_clock: SimClock,
 }
 
 impl TruthRecorder {
     pub fn start(sim: &Sim, addresses: &[u8]) -> TruthRecorder {
         let controllers: Vec<SharedController> = addresses.iter().map(|&a| sim.controller(a)).collect();
-        let clock = sim.clock;
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || {
-            let mut out: Vec<Vec<Truth>> = vec![Vec::new(); controllers.len()];
-            while !flag.load(Ordering::Relaxed) {
-                for (c, rec) in controllers.iter().zip(out.iter_mut()) {
-                    let mut g = lock(c);
-                    g.advance_to(clock.now());
-                    let s = g.true_state();
-                    drop(g);
-                    if rec.last().is_some_and(|l: &Truth| l.t >= s.time) {
-                        continue;
-                    }
+        for c in &controllers {
+            let mut g = lock(c);
+            g.advance_to(sim.sim_clock.now());
+            g.trace_truth(Some(1 << 20));
+        }
+        TruthRecorder { controllers, sim_clock: sim.sim_clock.clone() }
+    }
+
+    pub fn finish(self) -> Vec<Vec<Truth>> {
+        let mut out = Vec::new();
+        for c in &self.controllers {
+            let mut g = lock(c);
+            g.advance_to(self.sim_clock.now());
+            let trace = g.take_truth_trace();
+            g.trace_truth(None);
+            drop(g);
+            let rec = trace
+                .into_iter()
+                .map(|s| {
                     let offset = s.counter as f64 - s.position_counts.floor();
-                    rec.push(Truth {
+                    Truth {
                         t: s.time,
                         counts: s.position_counts + offset,
                         speed: s.speed_counts_per_s,
                         bridge_on: s.bridge_on,
-                    });
-                }
-                std::thread::sleep(Duration::from_micros(700));
-            }
-            out
-        });
-        TruthRecorder { stop, thread: Some(thread) }
-    }
-
-    pub fn finish(mut self) -> Vec<Vec<Truth>> {
-        self.stop.store(true, Ordering::Relaxed);
-        self.thread.take().unwrap().join().unwrap()
+                    }
+                })
+                .collect();
+            out.push(rec);
+        }
+        out
     }
 }
 
@@ -147,19 +169,7 @@ pub fn arrival(rec: &[Truth], target: f64, tol: f64) -> Option<Duration> {
     rec.get(last_out + 1).map(|r| r.t)
 }
 
-/// Polls `f` every 5 ms until it is true or `timeout` elapses.
-pub fn eventually(timeout: Duration, mut f: impl FnMut() -> bool) -> bool {
-    let t0 = Instant::now();
-    while t0.elapsed() < timeout {
-        if f() {
-            return true;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    f()
-}
-
-/// Seconds of a long run: `MOTUS_NFV2_TRACK_SECONDS` (default `default`).
+/// Seconds of a long run: `var` (default `default`).
 pub fn seconds(var: &str, default: u64) -> u64 {
     std::env::var(var).ok().and_then(|s| s.parse().ok()).unwrap_or(default)
 }

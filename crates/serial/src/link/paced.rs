@@ -2,7 +2,7 @@
 //! takes the same wire time as a real module.
 
 use super::{LineSettings, Link};
-use motus_clock::{SharedClock, SystemClock};
+use motus_clock::{Clock, SharedClock, SystemClock};
 use std::io;
 use std::time::{Duration, Instant};
 
@@ -41,19 +41,7 @@ impl<L: Link> Paced<L> {
 /// precision. (Code that takes a clock waits with
 /// [`Clock::sleep_until`](motus_clock::Clock::sleep_until) instead.)
 pub fn sleep_until(deadline: Instant) {
-    const SPIN: Duration = Duration::from_micros(150);
-    loop {
-        let now = Instant::now();
-        if now >= deadline {
-            return;
-        }
-        let left = deadline - now;
-        if left > SPIN {
-            std::thread::sleep(left - SPIN);
-        } else {
-            std::hint::spin_loop();
-        }
-    }
+    motus_clock::SystemClock.sleep_until_precise(deadline);
 }
 
 impl<L: Link> Link for Paced<L> {
@@ -62,7 +50,7 @@ impl<L: Link> Link for Paced<L> {
         let mut t = self.line_free_at.max(self.clock.now());
         for b in bytes {
             t += ct;
-            self.clock.sleep_until(t);
+            self.clock.sleep_until_precise(t);
             self.inner.write_all(std::slice::from_ref(b))?;
         }
         self.line_free_at = t;
