@@ -73,7 +73,8 @@ fn the_link_comes_back_after_the_hub_restarts_on_the_same_port() {
     while !(master.is_up() && node.is_up()) {
         let _ = master.recv(Duration::from_millis(20)).unwrap();
         let _ = node.recv(Duration::from_millis(20)).unwrap();
-        assert!(restarted.elapsed() < Duration::from_secs(5), "not reconnected within 5 s");
+        // Liveness: the back-off (100 ms doubling to 2 s) retries within 2 s of the restart.
+        assert!(restarted.elapsed() < Duration::from_secs(20), "not reconnected within 20 s");
     }
     eprintln!("reconnected {:?} after the hub restarted", restarted.elapsed());
     assert_eq!(master.connections(), 2);

@@ -1,6 +1,7 @@
 //! SDO benchmarks: sans-IO client throughput, and expedited round trips of the threaded
 //! master against a scripted responder over MemoryHub and over the socketcand hub on
-//! loopback TCP.
+//! loopback TCP. After criterion, each round trip is timed in a loop for a second and printed
+//! as a `REALTIME sdo.roundtrip.<hub> <us> us` line for `scripts/realtime.sh`.
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
 
 #[path = "../tests/common/mod.rs"]
@@ -53,7 +54,13 @@ fn sans_io(c: &mut Criterion) {
     g.finish();
 }
 
-fn round_trips(c: &mut Criterion, name: &str, master_bus: Arc<dyn CanBus>, node_bus: Arc<dyn CanBus>) {
+fn round_trips(
+    c: &mut Criterion,
+    name: &str,
+    key: &str,
+    master_bus: Arc<dyn CanBus>,
+    node_bus: Arc<dyn CanBus>,
+) {
     let _node = common::spawn_node(node_bus, 5, None);
     let m = Master::new(master_bus);
     // Let the socketcand handshake settle and the boot-up pass.
@@ -63,11 +70,20 @@ fn round_trips(c: &mut Criterion, name: &str, master_bus: Arc<dyn CanBus>, node_
     g.sample_size(20).measurement_time(Duration::from_secs(3));
     g.bench_function(name, |b| b.iter(|| m.read_u16(5, 0x6041, 0).unwrap()));
     g.finish();
+    let t0 = Instant::now();
+    let mut n = 0u64;
+    while t0.elapsed() < Duration::from_secs(1) {
+        m.read_u16(5, 0x6041, 0).unwrap();
+        n += 1;
+    }
+    let us = t0.elapsed().as_secs_f64() * 1e6 / n.max(1) as f64;
+    println!("{name}: {n} round trips in 1 s, {us:.1} us each");
+    println!("REALTIME sdo.roundtrip.{key} {us:.1} us");
 }
 
 fn memory(c: &mut Criterion) {
     let hub = MemoryHub::new();
-    round_trips(c, "memory_hub_expedited_upload", Arc::new(hub.connect()), Arc::new(hub.connect()));
+    round_trips(c, "memory_hub_expedited_upload", "memory", Arc::new(hub.connect()), Arc::new(hub.connect()));
 }
 
 fn socketcand(c: &mut Criterion) {
@@ -79,7 +95,7 @@ fn socketcand(c: &mut Criterion) {
     .unwrap();
     let a = SocketcandBus::connect(hub.local_addr(), "can0").unwrap();
     let b = SocketcandBus::connect(hub.local_addr(), "can0").unwrap();
-    round_trips(c, "socketcand_loopback_expedited_upload", Arc::new(a), Arc::new(b));
+    round_trips(c, "socketcand_loopback_expedited_upload", "socketcand", Arc::new(a), Arc::new(b));
 }
 
 criterion_group!(benches, sans_io, memory, socketcand);

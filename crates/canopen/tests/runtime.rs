@@ -1,5 +1,11 @@
 //! Runtime tests of `Master` on an in-process `MemoryHub` with scripted fake nodes
 //! (tests/common) that implement the SDO server / NMT slave from the spec's byte tables.
+//!
+//! On the wall clock: every time-out here is liveness (or a protocol time-out far beyond the
+//! answers' microseconds); durations are asserted only from below, which load cannot break.
+//! The SYNC period is printed; the 1 kHz SYNC jitter and the SDO rates are measured by
+//! `cargo bench -p motus-robot --bench sync_jitter` and `--bench canopen_rates`
+//! (`scripts/realtime.sh`).
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 mod common;
@@ -77,19 +83,27 @@ fn sdo_timeout_sends_abort() {
 fn different_nodes_in_parallel_same_node_serialised() {
     let (hub, m) = setup();
     let a = common::spawn_node(bus(&hub), 5, None);
-    let b = common::spawn_node(bus(&hub), 6, None);
-    for n in [&a, &b] {
-        n.controls.sdo_delay_us.store(100_000, Ordering::SeqCst);
-    }
-    let t0 = Instant::now();
+    let _b = common::spawn_node(bus(&hub), 6, None);
+    // Node 5 answers after 1 s (within the master's SDO time-out), node 6 at once: a transfer
+    // to node 6 completes while node 5's is still outstanding, whatever the host's load (the
+    // order is checked, not a duration).
+    m.set_sdo_timeout(Duration::from_secs(10));
+    a.controls.sdo_delay_us.store(1_000_000, Ordering::SeqCst);
     std::thread::scope(|s| {
         let h1 = s.spawn(|| m.read_u16(5, 0x6041, 0).unwrap());
-        let h2 = s.spawn(|| m.read_u16(6, 0x6041, 0).unwrap());
+        // Node 5 has the request (and sleeps on its answer).
+        let t0 = Instant::now();
+        while a.controls.requests.load(Ordering::SeqCst) == 0 {
+            assert!(t0.elapsed() < Duration::from_secs(10), "node 5 got no request");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let t0 = Instant::now();
+        assert_eq!(m.read_u16(6, 0x6041, 0).unwrap(), 0x0237);
+        eprintln!("node 6 answered {:?} while node 5's transfer was outstanding", t0.elapsed());
+        assert!(!h1.is_finished(), "node 6's transfer waited for node 5's");
         assert_eq!(h1.join().unwrap(), 0x0237);
-        assert_eq!(h2.join().unwrap(), 0x0237);
     });
-    let parallel = t0.elapsed();
-    assert!(parallel < Duration::from_millis(190), "different nodes took {parallel:?}");
+    a.controls.sdo_delay_us.store(100_000, Ordering::SeqCst);
     let t0 = Instant::now();
     std::thread::scope(|s| {
         let h1 = s.spawn(|| m.read_u16(5, 0x6041, 0).unwrap());
@@ -111,9 +125,11 @@ fn nmt_heartbeat_lost_and_recovered() {
     m.wait_state(5, NmtState::Operational, Duration::from_secs(2)).unwrap();
     m.nmt(0, NmtCommand::Stop).unwrap();
     m.wait_state(5, NmtState::Stopped, Duration::from_secs(2)).unwrap();
-    m.monitor_heartbeat(5, Duration::from_millis(100));
+    // Heartbeat every 10 ms, consumer time 250 ms (a node thread held off the CPU that long
+    // would be a false loss), silent for 1 s.
+    m.monitor_heartbeat(5, Duration::from_millis(250));
     node.controls.silent.store(true, Ordering::SeqCst);
-    std::thread::sleep(Duration::from_millis(300));
+    std::thread::sleep(Duration::from_millis(1000));
     node.controls.silent.store(false, Ordering::SeqCst);
     std::thread::sleep(Duration::from_millis(50));
     // Reset node -> boot-up seen by wait_boot.
@@ -124,12 +140,23 @@ fn nmt_heartbeat_lost_and_recovered() {
         h.join().unwrap()
     });
     waiter.unwrap();
+    // The events so far (liveness: until the recovery and the second boot-up are in).
+    let count = |got: &[MasterEvent], f: &dyn Fn(&MasterEvent) -> bool| got.iter().filter(|e| f(e)).count();
+    let is_lost = |e: &MasterEvent| matches!(e, MasterEvent::HeartbeatLost { node: 5, .. });
+    let is_recovered = |e: &MasterEvent| matches!(e, MasterEvent::HeartbeatRecovered { node: 5, .. });
+    let is_booted = |e: &MasterEvent| matches!(e, MasterEvent::Booted { node: 5 });
+    let mut got: Vec<MasterEvent> = Vec::new();
+    let t0 = Instant::now();
+    while count(&got, &is_recovered) < 1 || count(&got, &is_booted) < 2 {
+        assert!(t0.elapsed() < Duration::from_secs(10), "{got:?}");
+        std::thread::sleep(Duration::from_millis(10));
+        got.extend(events.try_iter());
+    }
     std::thread::sleep(Duration::from_millis(30));
-    let got: Vec<MasterEvent> = events.try_iter().collect();
-    let lost = got.iter().filter(|e| matches!(e, MasterEvent::HeartbeatLost { node: 5, .. })).count();
-    let recovered =
-        got.iter().filter(|e| matches!(e, MasterEvent::HeartbeatRecovered { node: 5, .. })).count();
-    let booted = got.iter().filter(|e| matches!(e, MasterEvent::Booted { node: 5 })).count();
+    got.extend(events.try_iter());
+    let lost = count(&got, &is_lost);
+    let recovered = count(&got, &is_recovered);
+    let booted = count(&got, &is_booted);
     assert_eq!(lost, 1, "{got:?}");
     assert_eq!(recovered, 1, "{got:?}");
     assert_eq!(booted, 2, "{got:?}");
@@ -158,7 +185,13 @@ fn emcy_and_malformed_frames() {
     for s in ["585#4B416000370200", "705#0500", "085#102303", "7E4#9900000000000000"] {
         peer.send(&f(s)).unwrap();
     }
-    std::thread::sleep(Duration::from_millis(100));
+    // Liveness: the receive thread has taken all five frames.
+    let t0 = Instant::now();
+    while m.stats().frames_received < 5 {
+        assert!(t0.elapsed() < Duration::from_secs(10), "{:?}", m.stats());
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    std::thread::sleep(Duration::from_millis(20));
     let got: Vec<MasterEvent> = events.try_iter().collect();
     assert_eq!(got.len(), 1, "{got:?}");
     let MasterEvent::Emergency(e) = &got[0] else { panic!("{got:?}") };
@@ -213,20 +246,27 @@ fn sync_producer_counter_and_period() {
     let (hub, m) = setup();
     let sniffer = hub.connect();
     let mut p = m.start_sync(Duration::from_millis(5), Some(4)).unwrap();
-    std::thread::sleep(Duration::from_millis(200));
+    // Liveness: at least 10 SYNC (about 50 ms) within 10 s.
+    let t0 = Instant::now();
+    while p.send_instants().len() < 10 {
+        assert!(t0.elapsed() < Duration::from_secs(10), "{} SYNC sent", p.send_instants().len());
+        std::thread::sleep(Duration::from_millis(20));
+    }
     p.stop();
     let mut counters = Vec::new();
     while let Ok(Some(r)) = sniffer.recv(Duration::from_millis(20)) {
         assert_eq!(r.frame.id(), 0x080);
         counters.push(r.frame.data()[0]);
     }
-    assert!(counters.len() >= 30, "{}", counters.len());
+    // Every SYNC the producer sent reached the bus, with the counter 1..=4 wrapping.
+    assert_eq!(counters.len(), p.send_instants().len());
     assert_eq!(&counters[..6], &[1, 2, 3, 4, 1, 2]);
+    // The period: printed (the host's scheduling); the 1 kHz SYNC jitter is measured by
+    // `cargo bench -p motus-robot --bench sync_jitter` (`scripts/realtime.sh`).
     let periods = p.periods();
     let mean = periods.iter().sum::<Duration>() / periods.len() as u32;
     let worst = periods.iter().map(|d| d.as_secs_f64() * 1e3 - 5.0).map(f64::abs).fold(0.0, f64::max);
     eprintln!("SYNC 5 ms: {} periods, mean {mean:?}, worst deviation {worst:.3} ms", periods.len());
-    assert!(mean > Duration::from_micros(4800) && mean < Duration::from_micros(5300), "{mean:?}");
     m.send_sync().unwrap();
     assert_eq!(sniffer.recv(Duration::from_secs(1)).unwrap().unwrap().frame.to_string(), "080#");
 }
@@ -327,8 +367,10 @@ fn lss_fastscan_and_configuration() {
     let ident = [0x0000_0123, 0x0000_0402, 0x0001_0002, 0x1234_5678];
     let slave = spawn_lss_slave(bus(&hub), ident, stop.clone());
     m.set_lss_timeout(Duration::from_millis(200));
+    // A step without an answer within the step time-out reads as a 0 bit: 40 ms, generous
+    // against the scripted slave's thread held off the CPU (answers take microseconds).
     let t0 = Instant::now();
-    let found = m.lss_fastscan(Duration::from_millis(20)).unwrap().unwrap();
+    let found = m.lss_fastscan(Duration::from_millis(40)).unwrap().unwrap();
     eprintln!("fastscan took {:?}", t0.elapsed());
     assert_eq!(found.parts(), ident);
     assert_eq!(m.lss_inquire_identity().unwrap(), found);
@@ -344,7 +386,7 @@ fn lss_fastscan_and_configuration() {
     m.lss_switch_selective(&found).unwrap();
     assert_eq!(m.lss_inquire_node_id().unwrap(), 2);
     // Configured slaves do not answer fastscan.
-    assert_eq!(m.lss_fastscan(Duration::from_millis(20)).unwrap(), None);
+    assert_eq!(m.lss_fastscan(Duration::from_millis(40)).unwrap(), None);
     stop.store(true, Ordering::SeqCst);
     assert_eq!(slave.join().unwrap(), (2, 7));
 }

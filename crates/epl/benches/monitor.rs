@@ -1,9 +1,25 @@
 //! Monitor per-frame processing: decode + cycle tracking + value extraction, on one simulated
-//! cycle (SoC, 5 × PReq/PRes, SoA) of the five-drive segment.
-#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
+//! cycle (SoC, 5 × PReq/PRes, SoA) of the five-drive segment (criterion).
+//!
+//! Then the segment's real-time figures: the scenario of `tests/udp.rs` and `tests/veth.rs`
+//! (`tests/common/mod.rs`: an MN, five drives, a monitor, a quick stop) at 1 ms and 400 us,
+//! over UDP on loopback and over veth (needs root, skipped otherwise), each monitored for
+//! `MOTUS_EPL_SECONDS` (5 s by default): cycles with a stale or invalid node, the MN's start
+//! jitter, PReq -> PRes. Printed as `REALTIME <name> <value> <unit>` lines (`REALTIME-SKIP
+//! <name> <reason>`) for `scripts/realtime.sh`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing, missing_docs)]
 
-use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use criterion::{black_box, Criterion, Throughput};
+use motus_epl::netns::BridgedPorts;
+use motus_epl::sim::MnConfig;
 use motus_epl::sim::{Actual, SetPoint};
+use motus_epl::{EthLink, UdpHub};
 use motus_epl::{Monitor, MonitorConfig};
 use motus_epl_protocol::{
     EplFrame, Flags, MacAddr, Message, NetTime, NmtState, PReq, PRes, PrRs, RequestedService, Soa, Soc,
@@ -66,5 +82,52 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
-criterion_main!(benches);
+/// One segment scenario; prints its `REALTIME` lines under `name` (e.g. `epl.udp.400us`).
+fn segment(name: &str, veth: bool, cycle: Duration, pres_timeout: Duration, spin: bool) {
+    let label = name.replace('.', " ");
+    let config = MnConfig { cycle, pres_timeout, spin_for_pres: spin, ..MnConfig::default() };
+    let seconds = common::seconds(5.0);
+    let out = if veth {
+        let ports = ["mn", "cn1", "cn2", "cn3", "cn4", "cn5", "mon"];
+        let ns = BridgedPorts::create("eplb", &ports).unwrap();
+        let mut links = ns.open(&ports).unwrap();
+        let mon = links.pop().unwrap();
+        let mn = links.remove(0);
+        let out = common::run_scenario(&label, mn, links, mon, config, seconds);
+        drop(ns);
+        out
+    } else {
+        let hub = UdpHub::new();
+        let mn: Arc<dyn EthLink> = Arc::new(hub.connect().unwrap());
+        let cns: Vec<Arc<dyn EthLink>> =
+            (0..5).map(|_| Arc::new(hub.connect().unwrap()) as Arc<dyn EthLink>).collect();
+        let mon: Arc<dyn EthLink> = Arc::new(hub.connect().unwrap());
+        common::run_scenario(&label, mn, cns, mon, config, seconds)
+    };
+    let us = |ns: u64| ns as f64 / 1000.0;
+    println!("REALTIME {name}.missed {:.3} %", out.missed_percent());
+    println!(
+        "REALTIME {name}.ran {:.1} %",
+        100.0 * out.monitored_cycles as f64 / out.nominal_cycles.max(1.0)
+    );
+    println!("REALTIME {name}.jitter.p99 {:.1} us", us(out.mn.jitter().p99));
+    println!("REALTIME {name}.rtt.p99 {:.1} us", us(out.mn.rtt().p99));
+}
+
+fn main() {
+    let mut c = Criterion::default().configure_from_args();
+    bench(&mut c);
+    c.final_summary();
+    // The segment scenarios take both cores for their cycle threads: one after another.
+    let (ms, us400) = (Duration::from_millis(1), Duration::from_micros(400));
+    segment("epl.udp.1ms", false, ms, Duration::from_micros(300), false);
+    segment("epl.udp.400us", false, us400, Duration::from_micros(150), false);
+    if motus_epl::netns::is_root() {
+        segment("epl.veth.1ms", true, ms, Duration::from_micros(300), false);
+        // Five drives in 400 us between user-space threads need the polling CNs and MN.
+        segment("epl.veth.400us", true, us400, Duration::from_micros(150), true);
+    } else {
+        println!("segment over veth: skipped, network namespaces and veth need root");
+        println!("REALTIME-SKIP epl.veth not root");
+    }
+}

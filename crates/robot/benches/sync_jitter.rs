@@ -9,6 +9,9 @@
 //!   prints the period and its jitter (|period − 1 ms|, from the instants the producer
 //!   handed SYNC to the transport) and how many cycles got all three TPDO2 replies before
 //!   the next SYNC.
+//!
+//! The figures are also printed as `REALTIME <name> <value> <unit>` lines for
+//! `scripts/realtime.sh`.
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
 
 use std::sync::mpsc::Receiver;
@@ -226,6 +229,13 @@ fn main() {
         stats.frames_received,
         stats.transport_errors,
     );
+    println!("REALTIME sync.1khz.jitter.p99 {:.1} us", quantile(&f.jitter_us, 0.99));
+    println!("REALTIME sync.1khz.grid.p99 {:.1} us", quantile(&f.grid_us, 0.99));
+    println!(
+        "REALTIME sync.1khz.tpdo2_missed {:.3} %",
+        100.0 * (f.cycles - f.complete) as f64 / f.cycles.max(1) as f64
+    );
+    println!("REALTIME sync.1khz.latency.p99 {:.0} us", quantile(&f.latency_us, 0.99));
     drop(master);
     c.final_summary();
 }

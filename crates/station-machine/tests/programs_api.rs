@@ -170,11 +170,9 @@ fn a_check_that_would_take_hours_stops_at_its_budget_and_the_station_stays_respo
     let (mut session, mut estop) = probe.join().unwrap();
     ws.join().unwrap();
     eprintln!("WebSocket: {baseline:.1} frames/s before the checks, {during:.1} frames/s during {checks_took:?} of checks");
-    // Liveness, not a timing threshold: the frames keep coming while the checks run.
-    assert!(
-        during >= baseline * 0.25 && during > 1.0,
-        "the WebSocket stalled: {during:.1} vs {baseline:.1} frames/s"
-    );
+    // Liveness, not a rate threshold: the frames keep coming while the checks run (the rate
+    // against the baseline is printed above; both follow the host's load).
+    assert!(during > 1.0, "the WebSocket stalled: {during:.1} vs {baseline:.1} frames/s");
     // The first check: a worker took it at once and stopped it at the budget (3 s by
     // default), with the clear error, at a line of the loop.
     let ((first_id, first), first_took) = &results[0];

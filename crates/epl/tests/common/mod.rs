@@ -1,5 +1,11 @@
 //! Shared scenario for the UDP and veth tests: an MN and five drive CNs, a monitor on its own
 //! link reading positions and speeds every cycle, then a quick stop.
+//!
+//! The tests check function only (boot-up, every drive read and following its cam, the quick
+//! stop), with generous liveness time-outs. The real-time figures of the same scenario (cycles
+//! with a missed node, MN start jitter, PReq -> PRes) are printed here and measured by
+//! `cargo bench -p motus-epl --bench monitor` (it includes this module), which
+//! `scripts/realtime.sh` runs and compares with the targets.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, dead_code)]
 
 use std::ops::ControlFlow;
@@ -24,13 +30,9 @@ pub fn map() -> ValueMap {
     ValueMap::from_toml(&text).unwrap()
 }
 
-/// Largest tolerated fraction of missed cycles: `default`, or MOTUS_EPL_MAX_MISS.
-pub fn max_miss(default: f64) -> f64 {
-    std::env::var("MOTUS_EPL_MAX_MISS").ok().and_then(|s| s.parse().ok()).unwrap_or(default)
-}
-
-pub fn seconds() -> f64 {
-    std::env::var("MOTUS_EPL_SECONDS").ok().and_then(|s| s.parse().ok()).unwrap_or(5.0)
+/// Length of the monitored run in seconds: MOTUS_EPL_SECONDS, else `default`.
+pub fn seconds(default: f64) -> f64 {
+    std::env::var("MOTUS_EPL_SECONDS").ok().and_then(|s| s.parse().ok()).unwrap_or(default)
 }
 
 pub fn cam() -> Vec<CamAxis> {
@@ -68,20 +70,39 @@ struct Shared {
     after_stop: Vec<CycleSample>,
 }
 
+/// What a run measured (real-time figures: printed by the tests, compared with their targets
+/// by the bench).
 pub struct Outcome {
+    /// The MN's statistics over the monitored window.
     pub mn: MnStats,
+    /// Cycles the monitor saw in the window.
     pub monitored_cycles: u64,
+    /// Nominal cycles in the window (its length / the cycle time).
+    pub nominal_cycles: f64,
+    /// Monitored cycles with at least one node stale or invalid.
     pub missed_cycles: u64,
+    /// Stale or invalid node readings (each listed in the report file).
+    pub node_misses: u64,
 }
 
-/// Runs the scenario; asserts boot-up, per-cycle freshness (< 0.1 % misses) and the quick stop.
+impl Outcome {
+    /// Monitored cycles with a missed node, in percent.
+    pub fn missed_percent(&self) -> f64 {
+        100.0 * self.missed_cycles as f64 / self.monitored_cycles.max(1) as f64
+    }
+}
+
+/// Runs the scenario for `seconds` of monitoring; asserts boot-up, every drive read and
+/// following its cam, and the quick stop (each drive at rest within its braking distance).
+/// The misses, the MN's jitter and its PReq -> PRes round trips are printed and returned,
+/// not asserted: they follow the host's load.
 pub fn run_scenario(
     label: &str,
     mn_link: Arc<dyn EthLink>,
     cn_links: Vec<Arc<dyn EthLink>>,
     monitor_link: Arc<dyn EthLink>,
     config: MnConfig,
-    max_missed_fraction: f64,
+    seconds: f64,
 ) -> Outcome {
     assert_eq!(cn_links.len(), NODES.len());
     let axes = cam();
@@ -144,8 +165,9 @@ pub fn run_scenario(
     }
     let t0 = Instant::now();
     let segment = b.start().unwrap();
-    // Boot-up: reduced PreOp1 cycles, IdentRequests, PreOp2, NMT commands, OPERATIONAL.
-    assert!(segment.wait_operational(Duration::from_secs(10)), "{label}: MN state {}", segment.mn_state());
+    // Boot-up: reduced PreOp1 cycles, IdentRequests, PreOp2, NMT commands, OPERATIONAL
+    // (about a second; the time-out is liveness only).
+    assert!(segment.wait_operational(Duration::from_secs(20)), "{label}: MN state {}", segment.mn_state());
     let boot = t0.elapsed();
     for n in NODES {
         assert_eq!(segment.cn_state(n), Some(NmtState::Operational), "{label}: node {n}");
@@ -154,7 +176,9 @@ pub fn run_scenario(
     std::thread::sleep(config.cycle * 5);
     segment.reset_stats();
     shared.lock().unwrap().counting = true;
-    std::thread::sleep(Duration::from_secs_f64(seconds()));
+    let window = Instant::now();
+    std::thread::sleep(Duration::from_secs_f64(seconds));
+    let window = window.elapsed().as_secs_f64();
     let mn_stats = segment.stats();
     let (counted, missed_cycles, misses, min_max, before) = {
         let mut sh = shared.lock().unwrap();
@@ -162,18 +186,17 @@ pub fn run_scenario(
         (sh.counted, sh.missed_cycles, sh.misses.clone(), sh.min_max.clone(), sh.latest.clone().unwrap())
     };
 
-    // Quick stop: each drive must stop within v0²/(2 a_b) plus the travel during the reaction
-    // time (the sample is up to 1 cycle old, and the quick-stop bit reaches the drive in the
-    // next PReq, applied from the SoC after it: up to 3 cycles at |v0|; 5 allowed for
-    // scheduling noise), plus 2 units of rounding.
     let j = mn_stats.jitter();
     let r = mn_stats.rtt();
+    let nominal_cycles = window / config.cycle.as_secs_f64();
     eprintln!(
-        "{label}: boot {:?}; {} cycles monitored, {} with a stale/invalid node ({} node misses); MN: {} cycles, jitter p50 {} us p99 {} us max {} us, \
+        "{label}: boot {:?}; {} cycles monitored of {:.0} nominal, {} with a stale/invalid node ({:.3} %, {} node misses); MN: {} cycles, jitter p50 {} us p99 {} us max {} us, \
          PReq->PRes p50 {} us p99 {} us max {} us, PRes misses {:?}, late {}, overruns {}",
         boot,
         counted,
+        nominal_cycles,
         missed_cycles,
+        100.0 * missed_cycles as f64 / counted.max(1) as f64,
         misses.len(),
         mn_stats.cycles,
         j.p50 / 1000,
@@ -200,11 +223,32 @@ pub fn run_scenario(
     // p_q (plus 2 units of rounding).
     shared.lock().unwrap().stopping = true;
     segment.quick_stop(true);
-    std::thread::sleep(Duration::from_millis(300));
-    let (after, trace) = {
-        let sh = shared.lock().unwrap();
-        (sh.latest.clone().unwrap(), sh.after_stop.clone())
+    // Braking takes a few milliseconds at these speeds; wait (liveness only) until the monitor
+    // shows every drive at rest with the quick-stop bit in its status word.
+    let at_rest = |s: &CycleSample| {
+        NODES.iter().all(|&n| {
+            s.node(n).is_some_and(|x| {
+                !x.stale
+                    && x.valid
+                    && matches!(x.value("speed"), Some(Value::I32(0)))
+                    && matches!(x.value("status"), Some(Value::U16(w)) if w & 0x0002 != 0)
+            })
+        })
     };
+    let t_stop = Instant::now();
+    let (after, trace) = loop {
+        std::thread::sleep(Duration::from_millis(20));
+        let sh = shared.lock().unwrap();
+        let latest = sh.latest.clone().unwrap();
+        if at_rest(&latest) && sh.after_stop.len() > 5 {
+            break (latest, sh.after_stop.clone());
+        }
+        assert!(
+            t_stop.elapsed() < Duration::from_secs(10),
+            "{label}: drives not at rest 10 s after the quick stop: {latest:?}"
+        );
+    };
+    eprintln!("{label}: every drive at rest {:?} after the quick stop", t_stop.elapsed());
     let brake = DriveParams::default().brake_decel;
     for n in NODES {
         let first_qs = trace
@@ -230,28 +274,27 @@ pub fn run_scenario(
     monitor_thread.join().unwrap().unwrap();
 
     let _ = final_stats;
-    // The cycle count follows the wall time: at least 25 % of the nominal cycles ran (overruns
-    // under CPU contention skip cycles; they are counted and printed).
-    let expected = seconds() / config.cycle.as_secs_f64();
-    assert!(counted as f64 >= 0.25 * expected, "{label}: {counted} cycles monitored, expected ~{expected}");
-    // The monitor's misses are the segment's: a PRes the MN also saw missing or late (a few
-    // cycles of slack: the MN's figures were taken just before the monitor stopped counting).
+    // The segment cycled and the monitor read it (liveness: how many of the nominal cycles
+    // ran follows the host's load, printed above).
+    assert!(counted >= 10, "{label}: {counted} cycles monitored in {window:.1} s");
+    // The monitor's misses beside the segment's (a PRes the MN also saw missing or late): a
+    // monitor thread held off the CPU loses frames of its own. Printed, not asserted.
     let segment_misses = mn_stats.total_missed() + mn_stats.pres_late;
-    assert!(
-        misses.len() as u64 <= segment_misses + 5,
-        "{label}: the monitor saw {} node misses, the MN {segment_misses}: the monitor lost frames of its own",
+    eprintln!(
+        "{label}: node misses seen by the monitor {}, by the MN (missed or late PRes) {segment_misses}",
         misses.len()
-    );
-    // Missed cycles (any node stale or invalid) below the limit; each miss is printed above.
-    assert!(
-        (missed_cycles as f64) < max_missed_fraction * counted as f64,
-        "{label}: {missed_cycles} missed cycles of {counted} (limit {max_missed_fraction})"
     );
     // Drives followed the cam: positions span most of the ±2000 amplitude.
     for (i, (lo, hi)) in min_max.iter().enumerate() {
         assert!(hi - lo > 3000, "{label}: node {} range {lo}..{hi}", NODES[i]);
     }
-    Outcome { mn: mn_stats, monitored_cycles: counted, missed_cycles }
+    Outcome {
+        mn: mn_stats,
+        monitored_cycles: counted,
+        nominal_cycles,
+        missed_cycles,
+        node_misses: misses.len() as u64,
+    }
 }
 
 /// Segment scenarios take both cores for their cycle threads: one at a time per test
