@@ -7,6 +7,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 command -v cargo >/dev/null || { echo "cargo is needed: install Rust from your distribution or rustup" >&2; exit 1; }
 bash scripts/install-oracles.sh
+# Figures the suite measures for scripts/realtime.sh are written afresh by this run.
+rm -rf target/realtime/from-suite
 # The browser test drives `motus demo` with a 1 ms POWERLINK juggler and headless Chromium on
 # the same host: it uses the release binary (a debug build of the whole cell loads a 2-core
 # machine enough for the juggler's supervisor to see late cycles).

@@ -15,7 +15,9 @@ use std::time::{Duration, Instant};
 use common::Client;
 use serde_json::{json, Value};
 
-/// One demo cell at a time: three at once overload a 2-core host (device time-outs).
+/// One demo cell at a time within this binary under `cargo test` (three at once overload a
+/// 2-core host); under nextest each test is a process and the `station` test group of
+/// `.config/nextest.toml` bounds them.
 static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 fn serial() -> std::sync::MutexGuard<'static, ()> {
