@@ -88,22 +88,18 @@ pub trait Clock: Send + Sync + std::fmt::Debug {
         let _ = starting;
     }
 
-    /// How many times the lock `key` has been released (see [`ClockMutex`]).
-    fn releases(&self, key: u64) -> u64 {
+    /// Takes the lock `key` of a [`ClockMutex`] on this clock, in the order asked, the
+    /// calling thread counting as blocked while it waits; returns false when the clock does
+    /// not order locks (the system clock, or a thread not taking part): the caller then
+    /// blocks on the mutex itself.
+    fn acquire(&self, key: u64) -> bool {
         let _ = key;
-        0
+        false
     }
 
-    /// Waits until the lock `key` has been released more than `seen` times, the calling
-    /// thread counting as blocked meanwhile (see [`ClockMutex`]). The system clock yields.
-    fn wait_for_release(&self, key: u64, seen: u64) {
-        let _ = (key, seen);
-        std::thread::yield_now();
-    }
-
-    /// The lock `key` was released: the threads waiting for it run again *before* time can
-    /// move (see [`ClockMutex`]).
-    fn released(&self, key: u64) {
+    /// Gives the lock `key` taken with [`Clock::acquire`] to the next waiter, which runs
+    /// again at once, before time can move.
+    fn release(&self, key: u64) {
         let _ = key;
     }
 
@@ -225,10 +221,9 @@ struct State {
     unparked: HashSet<ThreadId>,
     /// Threads inside [`Clock::settle`].
     settling: HashSet<ThreadId>,
-    /// Taking part threads waiting for a [`ClockMutex`] (by its key) to be released.
-    waiting_for: HashMap<ThreadId, u64>,
-    /// Releases of each [`ClockMutex`] so far (by key).
-    releases: HashMap<u64, u64>,
+    /// [`ClockMutex`]es taken through the clock (by key): the owner and the waiters in the
+    /// order they asked.
+    locks: HashMap<u64, LockQueue>,
 }
 
 impl State {
@@ -256,6 +251,13 @@ impl State {
         self.starting == 0
             && self.threads.iter().all(|(id, wait)| *id == me || wait.is_some() || self.settling.contains(id))
     }
+}
+
+/// The owner of a [`ClockMutex`] and its waiters, first come first served.
+#[derive(Debug, Default)]
+struct LockQueue {
+    owner: Option<ThreadId>,
+    waiters: std::collections::VecDeque<ThreadId>,
 }
 
 static NEXT_CLOCK_ID: AtomicU64 = AtomicU64::new(1);
@@ -445,44 +447,36 @@ impl Clock for VirtualClock {
         }
     }
 
-    fn releases(&self, key: u64) -> u64 {
-        self.inner.lock().releases.get(&key).copied().unwrap_or(0)
-    }
-
-    fn wait_for_release(&self, key: u64, seen: u64) {
+    fn acquire(&self, key: u64) -> bool {
         if !self.inner.threaded || !self.inner.is_member() {
-            std::thread::yield_now();
-            return;
+            return false;
         }
         let me = std::thread::current().id();
         let mut state = self.inner.lock();
-        if state.releases.get(&key).copied().unwrap_or(0) != seen {
-            return;
+        let queue = state.locks.entry(key).or_default();
+        if queue.owner.is_none() && queue.waiters.is_empty() {
+            queue.owner = Some(me);
+            return true;
         }
-        state.waiting_for.insert(me, key);
+        queue.waiters.push_back(me);
         self.inner.set_wait(&mut state, Some(u64::MAX));
-        while state.releases.get(&key).copied().unwrap_or(0) == seen {
+        while state.locks.get(&key).and_then(|q| q.owner) != Some(me) {
             state = match self.inner.woken.wait_timeout(state, WAKE_CHECK) {
                 Ok((s, _)) => s,
                 Err(poisoned) => poisoned.into_inner().0,
             };
         }
-        // `released` marked this thread running already; make sure of it.
-        state.waiting_for.remove(&me);
+        // `release` marked this thread running already.
         self.inner.set_wait(&mut state, None);
+        true
     }
 
-    fn released(&self, key: u64) {
-        if !self.inner.threaded {
-            return;
-        }
+    fn release(&self, key: u64) {
         let mut state = self.inner.lock();
-        *state.releases.entry(key).or_insert(0) += 1;
-        let woken: Vec<ThreadId> =
-            state.waiting_for.iter().filter(|(_, k)| **k == key).map(|(t, _)| *t).collect();
-        for t in woken {
-            state.waiting_for.remove(&t);
-            if let Some(w) = state.threads.get_mut(&t) {
+        let Some(queue) = state.locks.get_mut(&key) else { return };
+        queue.owner = queue.waiters.pop_front();
+        if let Some(next) = queue.owner {
+            if let Some(w) = state.threads.get_mut(&next) {
                 *w = None;
             }
         }
@@ -591,11 +585,13 @@ static NEXT_LOCK_KEY: AtomicU64 = AtomicU64::new(1);
 /// A mutex for data that threads of a [threaded](VirtualClock::threaded) virtual clock
 /// share while they sleep on it (a bus line held across a transaction's wire time).
 ///
-/// A thread waiting for the lock counts as blocked, so time can move for the holder; when
-/// the holder releases it, the waiters count as running again *at once*, before the holder's
-/// next sleep can move time past them (with a plain mutex and [`while_blocked`], a waiter
-/// stays marked blocked until the OS runs it, and time can jump meanwhile). On the system
-/// clock it is a plain mutex.
+/// On such a clock the lock is handed over first come first served: a thread waiting for it
+/// counts as blocked, so time can move for the holder, and the holder's release gives it to
+/// the first waiter, which counts as running again *at once*, before the holder's next sleep
+/// can move time past it (with a plain mutex and [`while_blocked`], a waiter stayed marked
+/// blocked until the OS ran it, and time jumped meanwhile), and in the order asked, so a run
+/// repeats. On the system clock it is a plain mutex (a handover to a waiter the OS has not
+/// run yet would hold the line for everyone behind it).
 #[derive(Debug)]
 pub struct ClockMutex<T> {
     clock: SharedClock,
@@ -608,6 +604,8 @@ pub struct ClockMutex<T> {
 pub struct ClockMutexGuard<'a, T> {
     guard: Option<MutexGuard<'a, T>>,
     lock: &'a ClockMutex<T>,
+    /// Taken through the clock's queue ([`Clock::acquire`]).
+    via_clock: bool,
 }
 
 impl<T> ClockMutex<T> {
@@ -623,16 +621,9 @@ impl<T> ClockMutex<T> {
 
     /// Takes the lock (a poisoned lock is taken all the same: the data is plain state).
     pub fn lock(&self) -> ClockMutexGuard<'_, T> {
-        loop {
-            let seen = self.clock.releases(self.key);
-            match self.inner.try_lock() {
-                Ok(guard) => return ClockMutexGuard { guard: Some(guard), lock: self },
-                Err(std::sync::TryLockError::Poisoned(p)) => {
-                    return ClockMutexGuard { guard: Some(p.into_inner()), lock: self }
-                }
-                Err(std::sync::TryLockError::WouldBlock) => self.clock.wait_for_release(self.key, seen),
-            }
-        }
+        let via_clock = self.clock.acquire(self.key);
+        let guard = self.inner.lock().unwrap_or_else(PoisonError::into_inner);
+        ClockMutexGuard { guard: Some(guard), lock: self, via_clock }
     }
 }
 
@@ -664,7 +655,9 @@ fn unreachable_guard() -> ! {
 impl<T> Drop for ClockMutexGuard<'_, T> {
     fn drop(&mut self) {
         drop(self.guard.take());
-        self.lock.clock.released(self.lock.key);
+        if self.via_clock {
+            self.lock.clock.release(self.lock.key);
+        }
     }
 }
 

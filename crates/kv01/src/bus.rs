@@ -1,13 +1,10 @@
 //! KV-01 transactions on a shared bus master, with the module's own refusals typed.
 
-use motus_clock::Clock;
 use motus_kv01_protocol::{
     Address, Command, CrcMode, Decoded, EncodeError, Message, MessageScanner, Reply, ReplyBody, ShortCode,
 };
 use motus_serial::{BusError, BusMaster, Request};
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
-use std::time::Duration;
 
 /// A KV-01 transaction failed.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -38,60 +35,22 @@ pub enum Kv01Error {
     Encode(#[from] EncodeError),
 }
 
-/// How often a thread waiting for its turn on the line looks again.
-const TURN_POLL: Duration = Duration::from_micros(250);
-
-/// Turns on the line, first come first served: the control thread's cycle and the calls
-/// of the arm's API (EN, D1, D4...) take turns.
-///
-/// A thread waits for its turn by sleeping on the bus master's clock in short steps
-/// ([`TURN_POLL`]) instead of blocking on a lock: on a threaded virtual clock a thread
-/// blocked on another one must be marked so ([`motus_clock::while_blocked`]), and that
-/// mark is lifted only once the woken thread runs again, so the clock could move time
-/// meanwhile for a thread that is about to run (the control thread's keep-alive would
-/// then miss whole cycles of virtual time). A sleeping waiter always holds time back.
-#[derive(Debug, Default)]
-struct Turns {
-    /// The next ticket to hand out.
-    next: AtomicU64,
-    /// The ticket whose turn it is.
-    serving: AtomicU64,
-}
-
-/// A turn on the line, given back when dropped.
-struct Turn<'a>(&'a Turns);
-
-impl Turns {
-    /// Waits (on `clock`) for a turn on the line.
-    fn take(&self, clock: &dyn Clock) -> Turn<'_> {
-        let ticket = self.next.fetch_add(1, Ordering::AcqRel);
-        while self.serving.load(Ordering::Acquire) != ticket {
-            clock.sleep(TURN_POLL);
-        }
-        Turn(self)
-    }
-}
-
-impl Drop for Turn<'_> {
-    fn drop(&mut self) {
-        self.0.serving.fetch_add(1, Ordering::AcqRel);
-    }
-}
-
 /// The KV-01 protocol on one line.
 #[derive(Clone)]
 pub struct Kv01Bus {
     master: Arc<BusMaster>,
     crc: CrcMode,
-    turns: Arc<Turns>,
 }
 
 impl Kv01Bus {
     /// KV-01 on `master`, checking reply CRCs in `crc` mode (strict by default; lenient
     /// accepts and logs a mismatch, for arms whose firmware differs from the publication).
-    /// Transactions (of every clone) take turns on the line, waiting on the master's clock.
+    /// Transactions (of every clone) take the line in turn through the bus master, whose
+    /// lock waits on its clock ([`motus_clock::ClockMutex`]): a thread waiting for the line
+    /// never holds it up for the others (a queue of tickets did, when a starved web thread's
+    /// ticket came up: the control thread waited behind it past the arm's 700 ms time-out).
     pub fn new(master: Arc<BusMaster>, crc: CrcMode) -> Self {
-        Kv01Bus { master, crc, turns: Arc::default() }
+        Kv01Bus { master, crc }
     }
 
     /// The bus master.
@@ -107,13 +66,11 @@ impl Kv01Bus {
         let len = msg.encode_into(&mut buf)?;
         let bytes = buf.get(..len).unwrap_or(&[]);
         let request = Request { device: u32::from(addr.raw()), bytes, reply_len: 8, idempotent: true };
-        let turn = self.turns.take(&**self.master.clock());
         let decoded = self.master.transact(
             &request,
             &MessageScanner::replies(self.crc),
             |d: &Decoded| matches!(&d.message, Message::Reply(Reply { address, .. }) if *address == addr),
         );
-        drop(turn);
         let decoded: Decoded = decoded?;
         if let Some(m) = decoded.crc_mismatch {
             tracing::warn!(

@@ -29,7 +29,7 @@ fn a_joint_moves_over_a_pty() {
 fn moves_complete_with_faults_injected_over_a_pty() {
     let faults = FaultConfig { drop_rate: 0.01, corrupt_rate: 0.01, seed: 11 };
     let sim = PtySim::start(LineOptions { faults, ..LineOptions::default() }.seeded(11));
-    let arm = sim.open(ArmConfig::default(), BusConfig { margin: Duration::from_millis(10), retries: 3 });
+    let arm = sim.open(ArmConfig::default(), BusConfig { margin: Duration::from_millis(100), retries: 3 });
     arm.power_up(1).unwrap();
     for target in [5.0, -5.0] {
         arm.move_joints(&[(1, target)], Some(30.0), Some(60.0)).unwrap();

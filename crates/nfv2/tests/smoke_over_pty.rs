@@ -72,7 +72,11 @@ fn eventually(mut f: impl FnMut() -> bool) -> bool {
 #[test]
 fn the_scheduler_cycles_and_raw_frames_go_between_cycles_over_a_pty() {
     let sim = Sim::start(LineOptions { addresses: vec![1, 2], ..LineOptions::default() });
-    let config = SchedulerConfig { cycle: Duration::from_millis(15), ..SchedulerConfig::default() };
+    let config = SchedulerConfig {
+        cycle: Duration::from_millis(15),
+        confirm_timeout: LIVENESS,
+        ..SchedulerConfig::default()
+    };
     let sched = Scheduler::start(sim.bus(), vec![DriveConfig::new(1), DriveConfig::new(2)], config).unwrap();
     assert!(eventually(|| sched.drives().iter().all(|d| d.samples().len() > 10)), "{}", sched.stats());
     let query = Frame { address: 2, commands: vec![Command::query(C::ReadDeviceVitals)] };
@@ -84,7 +88,11 @@ fn the_scheduler_cycles_and_raw_frames_go_between_cycles_over_a_pty() {
 #[test]
 fn a_drive_enables_and_moves_over_a_pty() {
     let sim = Sim::start(LineOptions { addresses: vec![1, 2], ..LineOptions::default() });
-    let config = SchedulerConfig { cycle: Duration::from_millis(15), ..SchedulerConfig::default() };
+    let config = SchedulerConfig {
+        cycle: Duration::from_millis(15),
+        confirm_timeout: LIVENESS,
+        ..SchedulerConfig::default()
+    };
     let sched = Scheduler::start(sim.bus(), vec![DriveConfig::new(1), DriveConfig::new(2)], config).unwrap();
     let drive = sched.drive(1).unwrap();
     drive.enable().unwrap();
@@ -102,7 +110,8 @@ fn the_head_homes_and_goes_to_a_target_over_a_paced_pty() {
     // Near the HOME edges, to keep it short.
     sim.with(1, |c| c.place_axis(-18_000.0).unwrap());
     sim.with(2, |c| c.place_axis(-19_000.0).unwrap());
-    let config = PanTiltConfig { home_timeout: LIVENESS, ..PanTiltConfig::default() };
+    let scheduler = SchedulerConfig { confirm_timeout: LIVENESS, ..PanTiltConfig::default().scheduler };
+    let config = PanTiltConfig { home_timeout: LIVENESS, scheduler, ..PanTiltConfig::default() };
     let pt = PanTilt::start(sim.bus(), config).unwrap();
     pt.home().unwrap();
     let t0 = Instant::now();
