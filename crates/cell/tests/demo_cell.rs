@@ -38,6 +38,9 @@ fn free_udp_block() -> u16 {
 
 /// The demo cell rewritten into `dir`.
 fn demo_cell(dir: &Path) -> motus_station::config::Cell {
+    // As a machine runs: SCHED_FIFO for the device, cyclic and simulator threads where
+    // permitted (root: CI), else nice levels; the suite runs beside other work (issue 19).
+    motus_realtime::set_policy(motus_realtime::RealtimePolicy::Auto);
     let examples = repo().join("crates/station/examples");
     let text = std::fs::read_to_string(examples.join("demo-cell.toml")).unwrap();
     let rules = repo().join("crates/safety/examples/juggler.toml").canonicalize().unwrap();

@@ -115,6 +115,9 @@ pub struct Station {
 pub fn station() -> Station {
     use motus_lab::{Lab, LabConfig, MemoryStore, Role, UnixMs};
     use std::sync::Arc;
+    // As a machine runs: SCHED_FIFO for the device, cyclic and simulator threads where
+    // permitted (root: CI), else nice levels; the suite runs beside other work (issue 19).
+    motus_realtime::set_policy(motus_realtime::RealtimePolicy::Auto);
     let dir = tempfile::tempdir().unwrap();
     let cell_file = motus_station_machine::demo::write_demo_cell(dir.path(), "127.0.0.1:0").unwrap();
     let cell = motus_station::config::load(&cell_file).unwrap_or_else(|e| panic!("{e}"));
