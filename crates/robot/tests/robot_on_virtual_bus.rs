@@ -1,7 +1,7 @@
 //! A smoke test of the real transports: the robot on the virtual CAN bus (the socketcand
 //! hub on loopback TCP, the simulated drives served by their own thread on the system
-//! clock) with the optical-mouse sensor on a pty: it brings the drives up, homes, runs the
-//! line program and every wheel is back within 1 Inc of the origin.
+//! clock) with the optical-mouse sensor on a pty: it brings the drives up, homes and runs the
+//! line program; where the wheels end is printed (on real time it follows the host's load).
 //!
 //! Real time: liveness bounds only (the controller's move time-outs, 1.5 times the planned
 //! move plus 2 s); the figures are printed. The behaviour (LSS, every demo program, wheel
@@ -53,6 +53,8 @@ fn smoke_the_robot_runs_a_program_over_the_hub_with_the_sensor_on_a_pty() {
         fused.pose,
         fused.slip_detected_count
     );
-    assert!(p.iter().all(|w| w.abs() <= 1), "wheels at {p:?}");
+    // On real time the wheels' return depends on the host's timing (a loaded host ends tens
+    // of increments off): printed only; within 1 Inc is checked on virtual time
+    // (robot_virtual_time.rs). The program ran and the bus held.
     assert!(sim.bus_failure().is_none(), "{:?}", sim.bus_failure());
 }
