@@ -67,7 +67,8 @@ fi
 # as a gross regression; default 10x the target). The 1 ms miss rates have a 0.1 % target
 # that a 5 s run on a shared host misses by more than 10x from noise alone (1.6 % seen on
 # CI's quiet VM): their gross line is 10 % of cycles (a segment that misses one cycle in
-# ten is broken, not noisy). Where the targets come from:
+# ten is broken, not noisy). The 1 ms jitter rows (100 us targets; 944 us seen beside other
+# builds) regress grossly past 5 ms, five periods. Where the targets come from:
 # - reaction: p99 below 1 ms inside Motus (the juggler's acceptance); p50 and the CPU part
 #   as reported (the CPU part against the supervisor bench's 5 us evaluation target);
 # - segment: 0.1 % of cycles with a missed node at 1 ms (the POWERLINK target), 5 % at
@@ -87,9 +88,9 @@ epl.udp.1ms.missed|1 ms cycle, UDP: cycles with a missed node|<=|0.1|%|0.05-0.2 
 epl.veth.1ms.missed|1 ms cycle, veth: cycles with a missed node|<=|0.1|%|none reported (tests allowed 2 %)|10
 epl.udp.400us.missed|400 us cycle, UDP: cycles with a missed node|<=|5|%|0.14-0.40 % (decisions.md)
 epl.veth.400us.missed|400 us cycle, veth (polling): cycles with a missed node|<=|5|%|0.17 % over 60 s (decisions.md)
-epl.udp.1ms.jitter.p99|1 ms POWERLINK MN cycle start jitter p99, UDP|<=|100|us|100 us class (powerlink.md)
-epl.veth.1ms.jitter.p99|1 ms POWERLINK MN cycle start jitter p99, veth|<=|100|us|100 us class (powerlink.md)
-sync.1khz.jitter.p99|1 kHz CANopen SYNC period jitter p99|<=|100|us|51-91 us (first measured here)
+epl.udp.1ms.jitter.p99|1 ms POWERLINK MN cycle start jitter p99, UDP|<=|100|us|100 us class (powerlink.md)|5000
+epl.veth.1ms.jitter.p99|1 ms POWERLINK MN cycle start jitter p99, veth|<=|100|us|100 us class (powerlink.md)|5000
+sync.1khz.jitter.p99|1 kHz CANopen SYNC period jitter p99|<=|100|us|51-91 us (first measured here)|5000
 nfv2.where.worst|where-at-t worst error, pan-tilt on real time (pty)|<=|0.05|deg|0.022-0.034 deg (decisions.md)
 nfv2.where.answered|where-at-t questions answered|>=|80|%|99.5-100 % (decisions.md)
 nfv2.cycle.packed.of_limit|NFv2 cycle back to back, packed, of the wire limit|<=|110|%|within 10 % (bench target)
