@@ -10,39 +10,12 @@ use motus_kv01_protocol::{
     crc, Address, Answer, Command, CrcMode, D1Action, Message, MessageScanner, Reply, ReplyBody, ShortCode,
 };
 use motus_kv01_sim::{lock, ArmSimLink, LineOptions, SharedArm, Side, SimLine};
-use motus_serial::{FaultConfig, FramedLink, LineSettings, Link, NullLink};
-use std::io;
-use std::sync::{Arc, Mutex, MutexGuard};
+use motus_serial::{FaultConfig, FramedLink, LineSettings, NullLink};
 use std::time::Duration;
 
 /// The host's end of the simulated line, kept by the test too (to read the serve step's
 /// counters).
-#[derive(Clone)]
-struct SharedLink(Arc<Mutex<ArmSimLink>>);
-
-impl SharedLink {
-    fn get(&self) -> MutexGuard<'_, ArmSimLink> {
-        self.0.lock().unwrap()
-    }
-}
-
-impl Link for SharedLink {
-    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.get().write_all(bytes)
-    }
-    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        self.get().read(buf, timeout)
-    }
-    fn discard_input(&mut self) -> io::Result<()> {
-        self.get().discard_input()
-    }
-    fn line(&self) -> LineSettings {
-        self.get().line()
-    }
-    fn describe(&self) -> String {
-        self.get().describe()
-    }
-}
+type SharedLink = motus_serial::SharedLink<ArmSimLink>;
 
 /// The host side on a virtual clock (one thread of control): replies read with the
 /// codec's stream decoder.
@@ -57,7 +30,7 @@ impl Host {
     fn start(baud: u32, options: LineOptions) -> Host {
         let clock = VirtualClock::new();
         let (link, arm) = SimLine::sim_link(options, LineSettings::n81(baud), clock.shared()).unwrap();
-        let link = SharedLink(Arc::new(Mutex::new(link)));
+        let link = SharedLink::new(link);
         let framed = FramedLink::with_clock(
             Box::new(link.clone()),
             MessageScanner::replies(CrcMode::Strict),

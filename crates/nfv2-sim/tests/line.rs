@@ -12,9 +12,7 @@ use motus_nfv2_protocol::{
     RS485_BAUD,
 };
 use motus_nfv2_sim::{lock, Controllers, LineOptions, SharedController, SimClock, SimLine};
-use motus_serial::{FaultConfig, FramedLink, LineSettings, Link, NullLink, SimLink};
-use std::io;
-use std::sync::{Arc, Mutex, MutexGuard};
+use motus_serial::{FaultConfig, FramedLink, LineSettings, NullLink, SimLink};
 use std::time::Duration;
 
 const REV: Revision = Revision::LATEST;
@@ -23,32 +21,7 @@ type Line = SimLink<FrameScanner, Controllers>;
 
 /// The in-process link, shared so that the test can read the serve step's counters while
 /// the host's framed link owns it.
-#[derive(Clone)]
-struct Shared(Arc<Mutex<Line>>);
-
-impl Shared {
-    fn get(&self) -> MutexGuard<'_, Line> {
-        self.0.lock().unwrap()
-    }
-}
-
-impl Link for Shared {
-    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.get().write_all(bytes)
-    }
-    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        self.get().read(buf, timeout)
-    }
-    fn discard_input(&mut self) -> io::Result<()> {
-        self.get().discard_input()
-    }
-    fn line(&self) -> LineSettings {
-        self.get().line()
-    }
-    fn describe(&self) -> String {
-        self.get().describe()
-    }
-}
+type Shared = motus_serial::SharedLink<Line>;
 
 /// The host, the line and the virtual clock they share (one thread of control: a wait
 /// moves time at once).
@@ -66,7 +39,7 @@ impl Rig {
         let null = NullLink::new(LineSettings::n81(baud));
         let line = SimLine::with_clock(Box::new(null), options, clock.shared()).unwrap();
         let (controllers, sim_clock) = (line.controllers(), line.clock());
-        let line = Shared(Arc::new(Mutex::new(line.into_sim_link())));
+        let line = Shared::new(line.into_sim_link());
         let host = FramedLink::with_clock(Box::new(line.clone()), FrameScanner::new(REV), clock.shared());
         Rig { clock, sim_clock, line, controllers, host }
     }

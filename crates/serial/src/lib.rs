@@ -38,6 +38,6 @@ pub use link::pty::PtyLink;
 pub use link::serial_port::SerialLink;
 pub use link::sim::{NullLink, SimLink};
 pub use link::trace::Traced;
-pub use link::{LineSettings, Link};
+pub use link::{LineSettings, Link, SharedLink};
 pub use serve::{Answer, LineError, Responder, ServeOptions, ServeThread, SimServer};
 pub use uri::{DeviceUri, UriError};

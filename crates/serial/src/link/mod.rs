@@ -108,6 +108,48 @@ macro_rules! link_behind {
 link_behind!(Box<L>);
 link_behind!(&mut L);
 
+/// A link shared between owners: one gives it to a bus master or a framed reader, another
+/// keeps a handle to look at it (an in-process [`crate::SimLink`]'s counters, say). Each call
+/// takes the lock for its duration.
+#[derive(Debug, Default)]
+pub struct SharedLink<L>(std::sync::Arc<std::sync::Mutex<L>>);
+
+impl<L> Clone for SharedLink<L> {
+    fn clone(&self) -> Self {
+        SharedLink(std::sync::Arc::clone(&self.0))
+    }
+}
+
+impl<L> SharedLink<L> {
+    /// Shares `link`.
+    pub fn new(link: L) -> Self {
+        SharedLink(std::sync::Arc::new(std::sync::Mutex::new(link)))
+    }
+
+    /// The link, locked (a poisoned lock is taken all the same).
+    pub fn get(&self) -> std::sync::MutexGuard<'_, L> {
+        self.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+}
+
+impl<L: Link> Link for SharedLink<L> {
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.get().write_all(bytes)
+    }
+    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        self.get().read(buf, timeout)
+    }
+    fn discard_input(&mut self) -> io::Result<()> {
+        self.get().discard_input()
+    }
+    fn line(&self) -> LineSettings {
+        self.get().line()
+    }
+    fn describe(&self) -> String {
+        self.get().describe()
+    }
+}
+
 /// A shared link is a link: the owner of the other handle can still reach it (e.g. a test
 /// that gave a [`sim::SimLink`] to a bus master and reads its statistics).
 impl<L: Link + ?Sized> Link for std::sync::Arc<std::sync::Mutex<L>> {
