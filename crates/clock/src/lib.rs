@@ -789,6 +789,22 @@ mod tests {
         Ok(())
     }
 
+    /// 100 transactions on `line`: each holds it for 1 ms of virtual time, then sleeps
+    /// 0.1 ms. Returns the longest wait for the line.
+    fn take_turns(c: &VirtualClock, line: &ClockMutex<u32>) -> Duration {
+        let mut worst = Duration::ZERO;
+        for _ in 0..100 {
+            let asked = c.now();
+            let mut l = line.lock();
+            worst = worst.max(c.elapsed(asked));
+            c.sleep(Duration::from_millis(1));
+            *l += 1;
+            drop(l);
+            c.sleep(Duration::from_micros(100));
+        }
+        worst
+    }
+
     #[test]
     fn a_lock_held_across_sleeps_is_handed_over_before_time_moves() -> std::io::Result<()> {
         // Two threads take turns on a "line": each holds it for 1 ms of virtual time per
@@ -800,30 +816,9 @@ mod tests {
         let line = Arc::new(ClockMutex::new(0u32, c.shared()));
         let worker = {
             let (c, line) = (c.clone(), Arc::clone(&line));
-            spawn(&shared, std::thread::Builder::new(), move || {
-                let mut worst = Duration::ZERO;
-                for _ in 0..100 {
-                    let asked = c.now();
-                    let mut l = line.lock();
-                    worst = worst.max(c.elapsed(asked));
-                    c.sleep(Duration::from_millis(1));
-                    *l += 1;
-                    drop(l);
-                    c.sleep(Duration::from_micros(100));
-                }
-                worst
-            })?
+            spawn(&shared, std::thread::Builder::new(), move || take_turns(&c, &line))?
         };
-        let mut worst = Duration::ZERO;
-        for _ in 0..100 {
-            let asked = c.now();
-            let mut l = line.lock();
-            worst = worst.max(c.elapsed(asked));
-            c.sleep(Duration::from_millis(1));
-            *l += 1;
-            drop(l);
-            c.sleep(Duration::from_micros(100));
-        }
+        let worst = take_turns(&c, &line);
         let other = while_blocked(&c, || worker.join().unwrap_or(Duration::MAX));
         assert_eq!(*line.lock(), 200);
         assert!(worst <= Duration::from_millis(1), "waited {worst:?}");
