@@ -33,7 +33,7 @@ pub use bus::poller::{Poller, PollerHandle};
 pub use bus::stats::{BusStats, DeviceStats};
 pub use link::fault::{FaultConfig, FaultInjector, FaultStats, RateError};
 pub use link::framed::FramedLink;
-pub use link::paced::{sleep_until, Paced};
+pub use link::paced::Paced;
 pub use link::pty::PtyLink;
 pub use link::serial_port::SerialLink;
 pub use link::sim::{NullLink, SimLink};

@@ -2,7 +2,7 @@
 //! takes the same wire time as a real module.
 
 use super::{LineSettings, Link};
-use motus_clock::{Clock, SharedClock, SystemClock};
+use motus_clock::{SharedClock, SystemClock};
 use std::io;
 use std::time::{Duration, Instant};
 
@@ -35,13 +35,6 @@ impl<L: Link> Paced<L> {
     pub fn clock(&self) -> &SharedClock {
         &self.clock
     }
-}
-
-/// Sleeps on the system clock until `deadline`, spinning for the last stretch for
-/// precision. (Code that takes a clock waits with
-/// [`Clock::sleep_until`](motus_clock::Clock::sleep_until) instead.)
-pub fn sleep_until(deadline: Instant) {
-    motus_clock::SystemClock.sleep_until_precise(deadline);
 }
 
 impl<L: Link> Link for Paced<L> {
