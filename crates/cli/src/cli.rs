@@ -399,6 +399,10 @@ pub struct ParamsSet {
     /// ANNB: zero-pulse approach acceleration number 1..10.
     #[arg(long)]
     pub annb: Option<u8>,
+    /// Extra reply time-out on top of the wire time (ms): raise it for slow adapters or a
+    /// loaded host.
+    #[arg(long, default_value_t = 20)]
+    pub margin_ms: u64,
 }
 
 /// Options of `motus kv01`.

@@ -25,6 +25,10 @@ fn fails(args: &[&str], record: &Path) -> String {
     String::from_utf8(o.stderr).unwrap()
 }
 
+/// Reply margin of every command on the simulator's pty: a liveness time-out, generous enough
+/// for a simulator process starved by a loaded host (the 20 ms default is for real lines).
+const MARGIN_MS: &str = "300";
+
 fn start_sim(link: &Path, state: &Path, addrs: &str) -> SimProcess {
     let link = format!("pty:{}", link.display());
     let state = state.to_str().unwrap();
@@ -72,7 +76,7 @@ fn simulator_process_scan_params_home_move_and_limits() {
         (dir.path().join("line"), dir.path().join("state.json"), dir.path().join("rec.json"));
     let _sim = start_sim(&link, &state, "2,5,11");
     let port = link.to_str().unwrap();
-    let out = ok(&["ps1a", port, "scan", "--range", "0-15", "--json"], &rec);
+    let out = ok(&["ps1a", port, "scan", "--range", "0-15", "--margin-ms", MARGIN_MS, "--json"], &rec);
     let found: Vec<u64> = serde_json::from_str::<serde_json::Value>(&out)
         .unwrap()
         .as_array()
@@ -83,13 +87,13 @@ fn simulator_process_scan_params_home_move_and_limits() {
     assert_eq!(found, vec![2, 5, 11]);
 
     ok(
-        &["ps1a", port, "params", "set", "--addr", "5", "--max", "40000", "--vnrb", "200", "--vnnb", "20"],
+        &["ps1a", port, "params", "set", "--addr", "5", "--max", "40000", "--vnrb", "200", "--vnnb", "20", "--margin-ms", MARGIN_MS],
         &rec,
     );
     let got = ok(&["ps1a", port, "params", "get", "--addr", "5", "--json"], &rec);
     assert!(got.contains(r#""max_position":40000"#), "{got}");
 
-    let uri = format!("ps1a://{port}?addr=5&max=40000&speed=3000");
+    let uri = format!("ps1a://{port}?addr=5&max=40000&speed=3000&margin_ms={MARGIN_MS}");
     let err = fails(&["axis", &uri, "move-abs", "1000"], &rec);
     assert!(err.contains("not homed"), "{err}");
     ok(&["axis", &uri, "enable"], &rec);
@@ -119,10 +123,10 @@ fn killing_the_simulator_mid_motion_is_detected_and_motion_refused_until_homed()
     let sim = start_sim(&link, &state, "1");
     let port = link.to_str().unwrap();
     ok(
-        &["ps1a", port, "params", "set", "--addr", "1", "--max", "900000", "--vnrb", "200", "--vnnb", "20"],
+        &["ps1a", port, "params", "set", "--addr", "1", "--max", "900000", "--vnrb", "200", "--vnnb", "20", "--margin-ms", MARGIN_MS],
         &rec,
     );
-    let uri = format!("ps1a://{port}?addr=1&max=900000&speed=300");
+    let uri = format!("ps1a://{port}?addr=1&max=900000&speed=300&margin_ms={MARGIN_MS}");
     ok(&["axis", &uri, "enable"], &rec);
     ok(&["axis", &uri, "home", "--wait"], &rec);
     // A long move, waited on by another process.

@@ -145,7 +145,7 @@ fn set(port: &str, baud: u32, json: bool, s: ParamsSet) -> Result<()> {
     if params.ds == 0 {
         bail!("--ds 0 would make every speed zero");
     }
-    let bus = open(port, baud, Duration::from_millis(20), 2)?;
+    let bus = open(port, baud, Duration::from_millis(s.margin_ms), 2)?;
     bus.write_parameters(s.addr, params)
         .with_context(|| format!("writing parameters to module {}", s.addr))?;
     record.remove(&key(port, s.addr));
