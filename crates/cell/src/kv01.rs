@@ -145,11 +145,13 @@ impl DeviceCtl for Kv01Device {
     }
 }
 
-/// The joints whose module neither gave a reading nor answered "TO" within [`STALE`] (a
-/// latched module still answers: the arm is there, and its alarm says what to do).
+/// The joints whose module neither gave a reading nor answered "TO" within [`STALE`] on the
+/// arm's clock (a latched module still answers: the arm is there, and its alarm says what to
+/// do).
 fn silent_joints(arm: &Kv01Arm) -> Vec<u8> {
     let latched = arm.latched_timeouts();
-    let answering = |joint: u8| latched.iter().any(|l| l.joint == joint && l.last_answer.elapsed() < STALE);
+    let answering =
+        |joint: u8| latched.iter().any(|l| l.joint == joint && arm.clock().elapsed(l.last_answer) < STALE);
     arm.joints().iter().filter(|j| j.age >= STALE && !answering(j.joint)).map(|j| j.joint).collect()
 }
 

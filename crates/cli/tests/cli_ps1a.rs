@@ -87,7 +87,22 @@ fn simulator_process_scan_params_home_move_and_limits() {
     assert_eq!(found, vec![2, 5, 11]);
 
     ok(
-        &["ps1a", port, "params", "set", "--addr", "5", "--max", "40000", "--vnrb", "200", "--vnnb", "20", "--margin-ms", MARGIN_MS],
+        &[
+            "ps1a",
+            port,
+            "params",
+            "set",
+            "--addr",
+            "5",
+            "--max",
+            "40000",
+            "--vnrb",
+            "200",
+            "--vnnb",
+            "20",
+            "--margin-ms",
+            MARGIN_MS,
+        ],
         &rec,
     );
     let got = ok(&["ps1a", port, "params", "get", "--addr", "5", "--json"], &rec);
@@ -123,7 +138,22 @@ fn killing_the_simulator_mid_motion_is_detected_and_motion_refused_until_homed()
     let sim = start_sim(&link, &state, "1");
     let port = link.to_str().unwrap();
     ok(
-        &["ps1a", port, "params", "set", "--addr", "1", "--max", "900000", "--vnrb", "200", "--vnnb", "20", "--margin-ms", MARGIN_MS],
+        &[
+            "ps1a",
+            port,
+            "params",
+            "set",
+            "--addr",
+            "1",
+            "--max",
+            "900000",
+            "--vnrb",
+            "200",
+            "--vnnb",
+            "20",
+            "--margin-ms",
+            MARGIN_MS,
+        ],
         &rec,
     );
     let uri = format!("ps1a://{port}?addr=1&max=900000&speed=300&margin_ms={MARGIN_MS}");

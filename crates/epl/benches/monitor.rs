@@ -114,18 +114,34 @@ fn segment(name: &str, veth: bool, cycle: Duration, pres_timeout: Duration, spin
     println!("REALTIME {name}.rtt.p99 {:.1} us", us(out.mn.rtt().p99));
 }
 
+/// The scenarios to run: `MOTUS_EPL_SEGMENTS` (comma-separated names such as `udp.1ms`,
+/// `veth.400us`), else all four.
+fn selected(name: &str) -> bool {
+    std::env::var("MOTUS_EPL_SEGMENTS")
+        .map_or(true, |list| list.split(',').any(|s| format!("epl.{}", s.trim()) == name))
+}
+
 fn main() {
+    // Scheduling as the binary's `--realtime` sets it: MOTUS_REALTIME (auto, nice, off).
+    if let Some(obtained) = motus_realtime::set_policy_from_env().unwrap() {
+        println!("real-time: {obtained}");
+    }
     let mut c = Criterion::default().configure_from_args();
     bench(&mut c);
     c.final_summary();
     // The segment scenarios take both cores for their cycle threads: one after another.
     let (ms, us400) = (Duration::from_millis(1), Duration::from_micros(400));
-    segment("epl.udp.1ms", false, ms, Duration::from_micros(300), false);
-    segment("epl.udp.400us", false, us400, Duration::from_micros(150), false);
+    let run = |name: &str, veth: bool, cycle: Duration, pres_timeout: Duration, spin: bool| {
+        if selected(name) {
+            segment(name, veth, cycle, pres_timeout, spin);
+        }
+    };
+    run("epl.udp.1ms", false, ms, Duration::from_micros(300), false);
+    run("epl.udp.400us", false, us400, Duration::from_micros(150), false);
     if motus_epl::netns::is_root() {
-        segment("epl.veth.1ms", true, ms, Duration::from_micros(300), false);
+        run("epl.veth.1ms", true, ms, Duration::from_micros(300), false);
         // Five drives in 400 us between user-space threads need the polling CNs and MN.
-        segment("epl.veth.400us", true, us400, Duration::from_micros(150), true);
+        run("epl.veth.400us", true, us400, Duration::from_micros(150), true);
     } else {
         println!("segment over veth: skipped, network namespaces and veth need root");
         println!("REALTIME-SKIP epl.veth not root");

@@ -219,6 +219,21 @@ fn disable_huge_pages() {
     }
 }
 
+/// The environment variable naming a policy for programs without a `--realtime` flag (the
+/// benchmarks that measure real-time figures): `auto`, `nice` or `off`.
+pub const POLICY_ENV: &str = "MOTUS_REALTIME";
+
+/// Sets the policy named by [`POLICY_ENV`], if set ([`set_policy`]); `Ok(None)` when unset.
+///
+/// # Errors
+/// The variable names no policy.
+pub fn set_policy_from_env() -> Result<Option<Obtained>, UnknownPolicy> {
+    match std::env::var(POLICY_ENV) {
+        Ok(name) => Ok(Some(set_policy(name.parse()?))),
+        Err(_) => Ok(None),
+    }
+}
+
 /// What the process obtained ([`Obtained::Off`] until [`set_policy`] is called).
 pub fn obtained() -> Obtained {
     OBTAINED.get().copied().unwrap_or(Obtained::Off)

@@ -141,6 +141,10 @@ fn analyse(sends: &[Instant], replies: &[Received]) -> Figures {
 }
 
 fn main() {
+    // Scheduling as the binary's `--realtime` sets it: MOTUS_REALTIME (auto, nice, off).
+    if let Some(obtained) = motus_realtime::set_policy_from_env().unwrap() {
+        println!("real-time: {obtained}");
+    }
     self_check();
     let mut c = Criterion::default().configure_from_args();
     let run_for = if std::env::var_os("BENCH_QUICK").is_some() {

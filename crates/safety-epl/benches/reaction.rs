@@ -160,6 +160,10 @@ fn on_veth() {
 }
 
 fn main() {
+    // Scheduling as the binary's `--realtime` sets it: MOTUS_REALTIME (auto, nice, off).
+    if let Some(obtained) = motus_realtime::set_policy_from_env().unwrap() {
+        println!("real-time: {obtained}");
+    }
     let mut c = Criterion::default().configure_from_args();
     cpu_part(&mut c);
     c.final_summary();

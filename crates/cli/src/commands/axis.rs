@@ -178,6 +178,7 @@ pub fn run(a: AxisArgs) -> Result<()> {
         let what = command.as_ref().map(AxisCommand::name).unwrap_or("motion");
         let name = axis.name().to_string();
         let res = wait_until(
+            &motus_clock::SystemClock,
             axis.as_mut(),
             what,
             Duration::from_secs_f64(a.timeout.max(0.0)),

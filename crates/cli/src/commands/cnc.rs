@@ -98,6 +98,7 @@ fn gantry_sink(
         axis.execute(&AxisCommand::Enable).ok();
         axis.execute(&AxisCommand::Home).with_context(|| format!("homing {name}"))?;
         let WaitOutcome::Done(_) = wait_until(
+            &motus_clock::SystemClock,
             &mut *axis,
             "homing",
             Duration::from_secs(60),
@@ -199,6 +200,7 @@ pub fn run(a: &GcodeRunArgs) -> Result<()> {
                 };
                 let _ = axis.execute(&settle);
                 let _ = motus_axis::wait_until(
+                    &motus_clock::SystemClock,
                     &mut *axis,
                     "in position",
                     Duration::from_secs(10),

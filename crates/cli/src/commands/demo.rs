@@ -105,6 +105,7 @@ fn wait_all(axes: &mut [Ps1aAxis], what: &str, stop: &AtomicBool) -> Result<()> 
     for axis in axes.iter_mut() {
         let left = Duration::from_secs(60).saturating_sub(start.elapsed());
         wait_until(
+            &motus_clock::SystemClock,
             axis,
             what,
             left,
