@@ -600,6 +600,6 @@ pub struct DemoArgs {
     #[arg(long)]
     pub stay: bool,
     /// Real-time priorities of the device and cyclic threads (docs/decisions.md).
-    #[arg(long, value_enum, default_value_t = crate::cli_station::RealtimeArg::Nice)]
+    #[arg(long, value_enum, default_value_t = crate::cli_station::RealtimeArg::Auto)]
     pub realtime: crate::cli_station::RealtimeArg,
 }
