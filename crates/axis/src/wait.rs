@@ -107,6 +107,16 @@ mod tests {
 
     const PERIOD: Duration = Duration::from_millis(20);
 
+    /// Waits every [`PERIOD`] for the axis to stand still, without progress.
+    fn wait_for_standstill(
+        clock: &VirtualClock,
+        axis: &mut Ramp,
+        what: &str,
+        timeout: Duration,
+    ) -> Result<WaitOutcome, AxisError> {
+        wait_until(clock, axis, what, timeout, PERIOD, |s| !s.flags.moving, |_| {})
+    }
+
     #[test]
     fn ends_at_the_first_poll_after_the_motion_ends() {
         let clock = VirtualClock::new();
@@ -134,16 +144,7 @@ mod tests {
         let clock = VirtualClock::new();
         let mut axis = ramp(&clock, 10_000, None);
         let t0 = clock.now();
-        let err = wait_until(
-            &clock,
-            &mut axis,
-            "home",
-            Duration::from_millis(150),
-            PERIOD,
-            |s| !s.flags.moving,
-            |_| {},
-        )
-        .unwrap_err();
+        let err = wait_for_standstill(&clock, &mut axis, "home", Duration::from_millis(150)).unwrap_err();
         assert!(matches!(&err, AxisError::WaitTimeout { what, .. } if what == "home"), "{err}");
         assert_eq!(clock.elapsed(t0), Duration::from_millis(160), "the first poll at or past 150 ms");
         assert_eq!(axis.reads, 9);
@@ -153,16 +154,7 @@ mod tests {
     fn a_fault_ends_the_wait_with_the_devices_reason() {
         let clock = VirtualClock::new();
         let mut axis = ramp(&clock, 1000, Some(50));
-        let err = wait_until(
-            &clock,
-            &mut axis,
-            "move",
-            Duration::from_secs(1),
-            PERIOD,
-            |s| !s.flags.moving,
-            |_| {},
-        )
-        .unwrap_err();
+        let err = wait_for_standstill(&clock, &mut axis, "move", Duration::from_secs(1)).unwrap_err();
         match err {
             AxisError::DeviceFault { axis, reason } => {
                 assert_eq!((axis.as_str(), reason.as_str()), ("ramp", "following error"));
