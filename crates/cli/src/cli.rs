@@ -521,6 +521,10 @@ pub struct Nfv2Args {
     /// Protocol revision: 2012, 2013, 2014 or latest.
     #[arg(long, default_value = "latest", global = true)]
     pub revision: String,
+    /// Extra reply time-out on top of the wire time (ms): raise it for slow adapters or a
+    /// loaded host.
+    #[arg(long, default_value_t = 20, global = true)]
+    pub margin_ms: u64,
     /// What to do.
     #[command(subcommand)]
     pub action: Nfv2Action,
@@ -550,6 +554,10 @@ pub struct PanTiltArgs {
     /// Address of the tilt controller.
     #[arg(long, default_value_t = 2, global = true)]
     pub tilt_addr: u8,
+    /// Extra reply time-out on top of the wire time (ms): raise it for slow adapters or a
+    /// loaded host.
+    #[arg(long, default_value_t = 20, global = true)]
+    pub margin_ms: u64,
     /// Print JSON.
     #[arg(long, global = true)]
     pub json: bool,

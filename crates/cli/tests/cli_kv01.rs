@@ -45,8 +45,13 @@ fn session_moves_a_joint_and_a_later_command_reports_the_latched_time_out() {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("arm");
     let port = link.to_str().unwrap();
-    let _sim =
-        SimProcess::start(&["sim", "kv01", "--link", &format!("pty:{port}")], "simulating the KV-01 arm");
+    // The modules' safety time-out at 3 s instead of the arm's 700 ms: the session below must
+    // not latch it when a loaded host stalls the processes (a liveness margin; the latch
+    // itself is what the end of the test checks).
+    let _sim = SimProcess::start(
+        &["sim", "kv01", "--link", &format!("pty:{port}"), "--arm", r#"{"cm":{"safety_timeout_ms":3000}}"#],
+        "simulating the KV-01 arm",
+    );
     let mut session = Command::new(MOTUS)
         .args(["kv01", port, "session", "--json"])
         .stdin(Stdio::piped())
@@ -70,8 +75,8 @@ fn session_moves_a_joint_and_a_later_command_reports_the_latched_time_out() {
     let a = joints[1]["angle_deg"].as_f64().unwrap();
     assert!((a - 25.0).abs() <= 0.1, "{a}");
     assert!(lines[3].contains("volts_24v"), "{text}");
-    // The session ended: 700 ms later every module has latched "TO".
-    std::thread::sleep(std::time::Duration::from_millis(900));
+    // The session ended: 3 s later every module has latched "TO".
+    std::thread::sleep(std::time::Duration::from_millis(3500));
     let o = motus(&["kv01", port, "joints"]);
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8(o.stderr).unwrap();

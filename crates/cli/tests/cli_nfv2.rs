@@ -28,6 +28,10 @@ fn nfv2_decode_encode_round_trip_and_errors() {
     assert_eq!(o.status.code(), Some(1));
 }
 
+/// Reply margin of the commands on the simulator's pty: a liveness time-out, generous enough
+/// for processes stalled by a loaded host (the 20 ms default is for real lines).
+const MARGIN_MS: &str = "1000";
+
 #[test]
 fn pantilt_home_goto_track_where_and_raw_frames() {
     let dir = tempfile::tempdir().unwrap();
@@ -37,11 +41,12 @@ fn pantilt_home_goto_track_where_and_raw_frames() {
         &["sim", "nfv2", "--link", &format!("pty:{port}"), "--addr", "1,2", "--baud-pacing"],
         "simulating 1209A controllers",
     );
-    let o = motus(&["pantilt", port, "goto", "30", "-10"]);
+    let o = motus(&["pantilt", "--margin-ms", MARGIN_MS, port, "goto", "30", "-10"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("not homed"));
-    assert!(motus(&["pantilt", port, "home"]).status.success());
-    let o = motus(&["pantilt", port, "goto", "30", "-10", "--json"]);
+    let o = motus(&["pantilt", "--margin-ms", MARGIN_MS, port, "home"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = motus(&["pantilt", "--margin-ms", MARGIN_MS, port, "goto", "30", "-10", "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(
@@ -50,13 +55,13 @@ fn pantilt_home_goto_track_where_and_raw_frames() {
     );
     let track = dir.path().join("track.txt");
     std::fs::write(&track, "# t pan tilt\n0 30 -10\n1 35 -5\n2 20 -5\n").unwrap();
-    let o = motus(&["pantilt", port, "track", track.to_str().unwrap(), "--json"]);
+    let o = motus(&["pantilt", "--margin-ms", MARGIN_MS, port, "track", track.to_str().unwrap(), "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!((v["pan_deg"].as_f64().unwrap() - 20.0).abs() < 0.05, "{v}");
     // The head stands at the track's end: "where" answers there (held-up samples of an
     // axis standing still are used, whatever the load on the host).
-    let o = motus(&["pantilt", port, "where", "0.1", "--json"]);
+    let o = motus(&["pantilt", "--margin-ms", MARGIN_MS, port, "where", "0.1", "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(
@@ -66,6 +71,8 @@ fn pantilt_home_goto_track_where_and_raw_frames() {
     );
     let o = motus(&[
         "nfv2",
+        "--margin-ms",
+        MARGIN_MS,
         port,
         "raw",
         r#"{"address":2,"commands":[{"kind":"query","code":"read_drives_position"}]}"#,
@@ -73,6 +80,6 @@ fn pantilt_home_goto_track_where_and_raw_frames() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["address"], 2);
-    let o = motus(&["axis", &format!("nfv2://{port}?addr=1"), "status", "--json"]);
+    let o = motus(&["axis", &format!("nfv2://{port}?addr=1&margin_ms={MARGIN_MS}"), "status", "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }

@@ -16,7 +16,7 @@ pub fn run_nfv2(a: Nfv2Args) -> Result<()> {
             let frame: Frame = serde_json::from_str(&json).context(
                 "invalid NFv2 JSON (e.g. {\"address\":1,\"commands\":[{\"kind\":\"query\",\"code\":\"read_drives_status\"}]})",
             )?;
-            let bus = Nfv2Bus::open(&a.port, a.baud, BusConfig::default())?.with_default_revision(rev);
+            let bus = Nfv2Bus::open(&a.port, a.baud, bus_config(a.margin_ms))?.with_default_revision(rev);
             match bus.transact(&frame)? {
                 Some(answer) => println!("{}", serde_json::to_string(&answer)?),
                 None => println!("{{\"answer\":null}}"),
@@ -24,6 +24,14 @@ pub fn run_nfv2(a: Nfv2Args) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The longest wait for both drives' first status before acting.
+const STATUS_WAIT: Duration = Duration::from_secs(10);
+
+/// The bus settings with `margin_ms` of reply margin.
+fn bus_config(margin_ms: u64) -> BusConfig {
+    BusConfig { margin: Duration::from_millis(margin_ms), ..BusConfig::default() }
 }
 
 fn head_config(a: &PanTiltArgs) -> PanTiltConfig {
@@ -35,11 +43,12 @@ fn head_config(a: &PanTiltArgs) -> PanTiltConfig {
 
 /// Runs `motus pantilt ...`.
 pub fn run_pantilt(a: PanTiltArgs) -> Result<()> {
-    let head = PanTilt::open(&a.port, a.baud, BusConfig::default(), head_config(&a))?;
-    // Let the scheduler read both drives' status (homed, faults) before acting on it.
+    let head = PanTilt::open(&a.port, a.baud, bus_config(a.margin_ms), head_config(&a))?;
+    // Let the scheduler read both drives' status (homed, faults) before acting on it (a
+    // liveness bound: it is read within a few cycles).
     let t0 = Instant::now();
     while (head.pan().snapshot().status.is_none() || head.tilt().snapshot().status.is_none())
-        && t0.elapsed() < Duration::from_secs(2)
+        && t0.elapsed() < STATUS_WAIT
     {
         std::thread::sleep(Duration::from_millis(5));
     }
