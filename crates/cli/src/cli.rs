@@ -608,6 +608,6 @@ pub struct DemoArgs {
     #[arg(long)]
     pub stay: bool,
     /// Real-time priorities of the device and cyclic threads (docs/decisions.md).
-    #[arg(long, value_enum, default_value_t = crate::cli_station::RealtimeArg::Auto)]
+    #[arg(long, value_enum, default_value_t = crate::cli_station::RealtimeArg::Nice)]
     pub realtime: crate::cli_station::RealtimeArg,
 }

@@ -58,12 +58,13 @@ pub enum RealtimePolicy {
     /// Leave every thread at the scheduler's default.
     Off,
     /// Nice levels only: web work at nice +10, device, cyclic and simulator threads at the
-    /// default priority (no `SCHED_FIFO`, whatever the permissions): for a host whose
-    /// other work must not wait for the machine's threads.
+    /// default priority (no `SCHED_FIFO`, whatever the permissions). The binary's default:
+    /// `SCHED_FIFO` threads that poll (the POWERLINK simulation, spinning waits for fast
+    /// answers) can take whole cores from everything else on a small host.
+    #[default]
     Nice,
     /// `SCHED_FIFO` for device and cyclic threads when the process may use it, else nice
-    /// levels (web work at nice +10). The binary's default (`motus serve`, `motus demo`).
-    #[default]
+    /// levels (web work at nice +10).
     Auto,
 }
 
@@ -566,7 +567,7 @@ mod tests {
         assert_eq!("off".parse::<RealtimePolicy>(), Ok(RealtimePolicy::Off));
         assert_eq!("nice".parse::<RealtimePolicy>(), Ok(RealtimePolicy::Nice));
         assert!("fifo".parse::<RealtimePolicy>().is_err());
-        assert_eq!(RealtimePolicy::default().to_string(), "auto");
+        assert_eq!(RealtimePolicy::default().to_string(), "nice");
     }
 
     #[test]
