@@ -128,8 +128,11 @@ fn task_errors_raise_one_alarm_until_reset() {
     wait_for("errors", Duration::from_secs(2), || sched.class_stats("io").unwrap().task_errors >= 5);
     let src = task_source("io-task");
     assert!(alarms.is_active(&src, AlarmCode::TaskError));
-    assert_eq!(alarms.raised().len(), 1);
-    assert_eq!(alarms.raised()[0].message, "task io-task: sensor missing");
+    // One task-error alarm for the five errors (a loaded host may add overrun alarms).
+    let raised = alarms.raised();
+    let task_errors: Vec<_> = raised.iter().filter(|a| a.code == AlarmCode::TaskError).collect();
+    assert_eq!(task_errors.len(), 1, "{raised:?}");
+    assert_eq!(task_errors[0].message, "task io-task: sensor missing");
     // Errors do not stop the class.
     assert_eq!(sched.class_stats("io").unwrap().state, ClassState::Running);
     probe.fail.store(false, Ordering::SeqCst);
