@@ -264,7 +264,9 @@ fn demo_cell_runs_every_family_and_survives_a_killed_simulator() {
                 back.insert(device);
             }
         }
-        assert!(t0.elapsed() < Duration::from_secs(10), "reconnected only {back:?}");
+        // A liveness bound: a reconnection attempt that failed on a loaded host waits out
+        // its back-off before the next.
+        assert!(t0.elapsed() < Duration::from_secs(30), "reconnected only {back:?}");
         std::thread::sleep(Duration::from_millis(50));
     }
     assert!(faults.faulted().is_empty(), "{:?}", faults.faulted());

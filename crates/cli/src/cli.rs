@@ -554,6 +554,9 @@ pub struct PanTiltArgs {
     /// Address of the tilt controller.
     #[arg(long, default_value_t = 2, global = true)]
     pub tilt_addr: u8,
+    /// No valid answer from a controller for this long (ms) is a communication fault.
+    #[arg(long, default_value_t = 500, global = true)]
+    pub silence_ms: u64,
     /// Extra reply time-out on top of the wire time (ms): raise it for slow adapters or a
     /// loaded host.
     #[arg(long, default_value_t = 20, global = true)]

@@ -29,8 +29,16 @@ fn nfv2_decode_encode_round_trip_and_errors() {
 }
 
 /// Reply margin of the commands on the simulator's pty: a liveness time-out, generous enough
-/// for processes stalled by a loaded host (the 20 ms default is for real lines).
+/// for processes stalled by a loaded host (the 20 ms default is for real lines). The head
+/// commands also wait 5 s of silence (not 500 ms) before a communication fault.
 const MARGIN_MS: &str = "1000";
+
+/// `motus pantilt --margin-ms 1000 --silence-ms 5000 <port> <args>`.
+fn pantilt(port: &str, args: &[&str]) -> Output {
+    let mut all = vec!["pantilt", "--margin-ms", MARGIN_MS, "--silence-ms", "5000", port];
+    all.extend_from_slice(args);
+    motus(&all)
+}
 
 #[test]
 fn pantilt_home_goto_track_where_and_raw_frames() {
@@ -41,12 +49,12 @@ fn pantilt_home_goto_track_where_and_raw_frames() {
         &["sim", "nfv2", "--link", &format!("pty:{port}"), "--addr", "1,2", "--baud-pacing"],
         "simulating 1209A controllers",
     );
-    let o = motus(&["pantilt", "--margin-ms", MARGIN_MS, port, "goto", "30", "-10"]);
+    let o = pantilt(port, &["goto", "30", "-10"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("not homed"));
-    let o = motus(&["pantilt", "--margin-ms", MARGIN_MS, port, "home"]);
+    let o = pantilt(port, &["home"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = motus(&["pantilt", "--margin-ms", MARGIN_MS, port, "goto", "30", "-10", "--json"]);
+    let o = pantilt(port, &["goto", "30", "-10", "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(
@@ -55,13 +63,13 @@ fn pantilt_home_goto_track_where_and_raw_frames() {
     );
     let track = dir.path().join("track.txt");
     std::fs::write(&track, "# t pan tilt\n0 30 -10\n1 35 -5\n2 20 -5\n").unwrap();
-    let o = motus(&["pantilt", "--margin-ms", MARGIN_MS, port, "track", track.to_str().unwrap(), "--json"]);
+    let o = pantilt(port, &["track", track.to_str().unwrap(), "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!((v["pan_deg"].as_f64().unwrap() - 20.0).abs() < 0.05, "{v}");
     // The head stands at the track's end: "where" answers there (held-up samples of an
     // axis standing still are used, whatever the load on the host).
-    let o = motus(&["pantilt", "--margin-ms", MARGIN_MS, port, "where", "0.1", "--json"]);
+    let o = pantilt(port, &["where", "0.1", "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(

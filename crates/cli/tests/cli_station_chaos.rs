@@ -131,9 +131,13 @@ fn drive(bus: &str) -> Process {
 }
 
 /// The arm: `motus sim kv01` on a pty at `path`.
+/// The arm's simulator on `path`, its modules' safety time-out at 3 s instead of 700 ms: a
+/// liveness margin, so that a station stalled by a loaded host while it connects does not
+/// latch the modules (the latch has tests of its own).
 fn arm(path: &Path) -> Process {
     let link = format!("pty:{}", path.display());
-    Process::start("arm", &["sim", "kv01", "--link", &link], "simulating the KV-01 arm", false)
+    let args = ["sim", "kv01", "--link", &link, "--arm", r#"{"cm":{"safety_timeout_ms":3000}}"#];
+    Process::start("arm", &args, "simulating the KV-01 arm", false)
 }
 
 /// A cell whose devices all run outside the station (`simulate` absent): the CiA 402

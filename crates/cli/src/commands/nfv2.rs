@@ -38,6 +38,7 @@ fn head_config(a: &PanTiltArgs) -> PanTiltConfig {
     let mut c = PanTiltConfig::default();
     c.pan = HeadAxis { address: a.pan_addr, ..c.pan };
     c.tilt = HeadAxis { address: a.tilt_addr, ..c.tilt };
+    c.scheduler.silence = Duration::from_millis(a.silence_ms);
     c
 }
 
