@@ -75,7 +75,9 @@ fn session_moves_a_joint_and_a_later_command_reports_the_latched_time_out() {
     let a = joints[1]["angle_deg"].as_f64().unwrap();
     assert!((a - 25.0).abs() <= 0.1, "{a}");
     assert!(lines[3].contains("volts_24v"), "{text}");
-    // The session ended: 3 s later every module has latched "TO".
+    // The session ended: 3 s later every module has latched "TO". A plain wait: any request
+    // meanwhile would renew the modules' communication and prevent the latch (the latch's
+    // timing is tested on virtual time in motus-kv01's tests).
     std::thread::sleep(std::time::Duration::from_millis(3500));
     let o = motus(&["kv01", port, "joints"]);
     assert_eq!(o.status.code(), Some(1));

@@ -30,6 +30,28 @@ fn fails(args: &[&str], record: &Path) -> String {
 /// three builds; the 20 ms default is for real lines).
 const MARGIN_MS: &str = "1000";
 
+/// `motus ps1a <port> params set` of module `addr` with maximum `max` and the tests'
+/// reference speeds.
+fn params_set(port: &str, addr: &str, max: &str, record: &Path) {
+    let args = [
+        "ps1a",
+        port,
+        "params",
+        "set",
+        "--addr",
+        addr,
+        "--max",
+        max,
+        "--vnrb",
+        "200",
+        "--vnnb",
+        "20",
+        "--margin-ms",
+        MARGIN_MS,
+    ];
+    ok(&args, record);
+}
+
 fn start_sim(link: &Path, state: &Path, addrs: &str) -> SimProcess {
     let link = format!("pty:{}", link.display());
     let state = state.to_str().unwrap();
@@ -87,25 +109,7 @@ fn simulator_process_scan_params_home_move_and_limits() {
         .collect();
     assert_eq!(found, vec![2, 5, 11]);
 
-    ok(
-        &[
-            "ps1a",
-            port,
-            "params",
-            "set",
-            "--addr",
-            "5",
-            "--max",
-            "40000",
-            "--vnrb",
-            "200",
-            "--vnnb",
-            "20",
-            "--margin-ms",
-            MARGIN_MS,
-        ],
-        &rec,
-    );
+    params_set(port, "5", "40000", &rec);
     let got = ok(&["ps1a", port, "params", "get", "--addr", "5", "--json"], &rec);
     assert!(got.contains(r#""max_position":40000"#), "{got}");
 
@@ -138,25 +142,7 @@ fn killing_the_simulator_mid_motion_is_detected_and_motion_refused_until_homed()
         (dir.path().join("line"), dir.path().join("state.json"), dir.path().join("rec.json"));
     let sim = start_sim(&link, &state, "1");
     let port = link.to_str().unwrap();
-    ok(
-        &[
-            "ps1a",
-            port,
-            "params",
-            "set",
-            "--addr",
-            "1",
-            "--max",
-            "900000",
-            "--vnrb",
-            "200",
-            "--vnnb",
-            "20",
-            "--margin-ms",
-            MARGIN_MS,
-        ],
-        &rec,
-    );
+    params_set(port, "1", "900000", &rec);
     let uri = format!("ps1a://{port}?addr=1&max=900000&speed=300&margin_ms={MARGIN_MS}");
     ok(&["axis", &uri, "enable"], &rec);
     ok(&["axis", &uri, "home", "--wait"], &rec);
