@@ -6,8 +6,10 @@ use std::path::PathBuf;
 /// `motus epl` commands.
 #[derive(Debug, Subcommand)]
 pub enum EplCommand {
-    /// Watch a segment passively and print the mapped process values of every cycle as JSON
-    /// lines (per node: fresh/stale, NMT state, values).
+    /// Watch a segment passively and print every cycle as a JSON line (PRes seen, missing
+    /// nodes, lost frames, frame counters; with --map, per mapped node fresh/stale, NMT state
+    /// and values), then a summary (frames received/decoded/undecoded/dropped, the kernel's
+    /// counters, per-node PRes, misses and NMT states).
     Monitor(EplMonitorArgs),
 }
 
@@ -21,15 +23,25 @@ pub struct EplMonitorArgs {
     /// Replay a capture (pcap or pcapng) instead of listening.
     #[arg(long)]
     pub pcap: Option<PathBuf>,
-    /// Value map (TOML `[[node]]` tables: node, values = [{ name, offset, type }]).
+    /// Value map (TOML `[[node]]` tables: node, values = [{ name, offset, type }]); without
+    /// it, a cycle-only watch (cycles, PRes, misses, NMT states, timing).
     #[arg(long)]
-    pub map: PathBuf,
+    pub map: Option<PathBuf>,
     /// A value older than this many cycles is stale.
     #[arg(long, default_value_t = 0)]
     pub stale_after: u32,
     /// Stop after this many cycles (default: until Ctrl-C or the end of the capture).
     #[arg(long)]
     pub cycles: Option<u64>,
+    /// Print one cycle line in N (cycles with a missing node or lost frames are always
+    /// printed; every line carries the cumulative counters).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    pub every: u64,
+    /// Receive queue asked for the raw socket, in bytes (SO_RCVBUFFORCE when permitted, else
+    /// SO_RCVBUF up to net.core.rmem_max); a larger queue drops fewer frames when the monitor
+    /// falls behind.
+    #[arg(long, default_value_t = 4 << 20)]
+    pub rcvbuf: usize,
 }
 
 /// Options of `motus sim epl`.

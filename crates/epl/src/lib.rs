@@ -21,7 +21,8 @@ pub mod replay;
 pub mod sim;
 pub mod transport;
 
-pub use monitor::{CycleSample, Monitor, MonitorConfig, MonitorStats, NodeSample};
+pub use monitor::{CycleSample, Monitor, MonitorConfig, MonitorStats, NodeCounters, NodeSample, TimingStats};
 pub use transport::{
-    open_link, EthLink, FaultConfig, FaultCounters, FaultyLink, PcapLink, RawSocket, UdpHub, UdpLink,
+    open_link, EthLink, FaultConfig, FaultCounters, FaultyLink, KernelRxStats, PcapLink, RawSocket, UdpHub,
+    UdpLink,
 };
