@@ -22,6 +22,8 @@ use crate::cli_epl::{EplCommand, EplMonitorArgs, SimEplArgs};
 pub fn run(cmd: EplCommand) -> Result<()> {
     match cmd {
         EplCommand::Monitor(a) => monitor(a),
+        EplCommand::Mn(a) => super::epl_mn::run(a),
+        EplCommand::Cn(a) => super::epl_cn::run(a),
     }
 }
 
