@@ -6,9 +6,88 @@ use std::path::PathBuf;
 /// `motus epl` commands.
 #[derive(Debug, Subcommand)]
 pub enum EplCommand {
-    /// Watch a segment passively and print the mapped process values of every cycle as JSON
-    /// lines (per node: fresh/stale, NMT state, values).
+    /// Watch a segment passively and print every cycle as a JSON line (PRes seen, missing
+    /// nodes, lost frames, frame counters; with --map, per mapped node fresh/stale, NMT state
+    /// and values), then a summary (frames received/decoded/undecoded/dropped, the kernel's
+    /// counters, per-node PRes, misses and NMT states).
     Monitor(EplMonitorArgs),
+    /// Run a Managing Node for foreign CNs (openPOWERLINK's among them) from a concise DCF:
+    /// boots each CN (identity check, SDO configuration by the CDC, NMT commands), runs the
+    /// cycle with process data by the CNs' mappings, boots again a CN that leaves
+    /// OPERATIONAL; prints state changes, configuration progress and errors, the process data
+    /// both ways every second, and the SoC jitter on exit.
+    Mn(EplMnArgs),
+    /// Run a standards-based Controlled Node that a foreign Managing Node (openPOWERLINK's)
+    /// boots, configures by SDO and keeps OPERATIONAL (communication profile and CiA 401
+    /// digital I/O of openPOWERLINK's demo CN); prints NMT state changes, NMT commands and
+    /// SDO writes received, and the PReq -> PRes turnaround on exit.
+    Cn(EplCnArgs),
+}
+
+/// Options of `motus epl cn`.
+#[derive(Debug, Args)]
+pub struct EplCnArgs {
+    /// Interface of the segment (raw socket, needs CAP_NET_RAW), or `mem://NAME` /
+    /// `udp://127.0.0.1:PORT` for in-process and loopback segments.
+    #[arg(long = "if")]
+    pub interface: String,
+    /// Node ID (1-239).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=239))]
+    pub node: u8,
+    /// Poll the link without sleeping (one busy core): no wake-up latency between the PReq
+    /// and the PRes, the fallback when SCHED_FIFO is not available.
+    #[arg(long)]
+    pub spin: bool,
+    /// Real-time scheduling of the node's thread: auto (SCHED_FIFO and locked memory when
+    /// permitted, else nice), nice, or off.
+    #[arg(long, value_enum, default_value_t = crate::cli_station::RealtimeArg::Auto)]
+    pub realtime: crate::cli_station::RealtimeArg,
+    /// Run this many seconds, then stop and print the summary (default: until Ctrl-C).
+    #[arg(long)]
+    pub seconds: Option<f64>,
+    /// How long an NMT reset takes, in milliseconds (the node is silent meanwhile): a CN that
+    /// is back at once is configured by openPOWERLINK's MN during its reduced PRE_OPERATIONAL_1
+    /// cycle, which makes that MN fail at a 1 ms cycle; openPOWERLINK's own CN takes 0.5-0.8 s.
+    #[arg(long, default_value_t = 1000)]
+    pub reset_ms: u64,
+}
+
+/// Options of `motus epl mn`.
+#[derive(Debug, Args)]
+pub struct EplMnArgs {
+    /// Interface of the segment (raw socket, needs CAP_NET_RAW), or `mem://NAME` /
+    /// `udp://127.0.0.1:PORT` for in-process and loopback segments.
+    #[arg(long = "if")]
+    pub interface: String,
+    /// The concise DCF (`.cdc`, openCONFIGURATOR's binary format), e.g. openPOWERLINK's
+    /// `demo_3cn_1ms.cdc`: CNs (0x1F81), cycle length (0x1006), PRes time-outs (0x1F92), each
+    /// CN's configuration (0x1F22).
+    #[arg(long)]
+    pub cdc: std::path::PathBuf,
+    /// Real-time scheduling of the cycle thread: auto (SCHED_FIFO and locked memory when
+    /// permitted, else nice), nice, or off.
+    #[arg(long, value_enum, default_value_t = crate::cli_station::RealtimeArg::Auto)]
+    pub realtime: crate::cli_station::RealtimeArg,
+    /// Run this many seconds, then stop and print the summary (default: until Ctrl-C).
+    #[arg(long)]
+    pub seconds: Option<f64>,
+    /// A fixed output value instead of the running counter, `NODE:INDEX/SUB=VALUE` (hex with
+    /// 0x), e.g. `1:0x6200/1=0x55`; an object the CN's PReq mapping does not hold is written by
+    /// SDO at the end of its configuration. Repeatable.
+    #[arg(long = "set", value_name = "NODE:INDEX/SUB=VALUE")]
+    pub set: Vec<String>,
+    /// Minimum PRes time-out in microseconds (the CDC's 0x1F92 is used when larger).
+    #[arg(long, default_value_t = 0)]
+    pub min_pres_timeout_us: u64,
+    /// The running-counter outputs advance every this many cycles.
+    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(1..))]
+    pub counter_every: u64,
+    /// PRes missed in a row before a CN is booted again.
+    #[arg(long, default_value_t = 20)]
+    pub lost_after: u32,
+    /// Poll the link without sleeping while waiting for PRes and ASnd (one busy core).
+    #[arg(long)]
+    pub spin: bool,
 }
 
 /// Options of `motus epl monitor`.
@@ -21,15 +100,25 @@ pub struct EplMonitorArgs {
     /// Replay a capture (pcap or pcapng) instead of listening.
     #[arg(long)]
     pub pcap: Option<PathBuf>,
-    /// Value map (TOML `[[node]]` tables: node, values = [{ name, offset, type }]).
+    /// Value map (TOML `[[node]]` tables: node, values = [{ name, offset, type }]); without
+    /// it, a cycle-only watch (cycles, PRes, misses, NMT states, timing).
     #[arg(long)]
-    pub map: PathBuf,
+    pub map: Option<PathBuf>,
     /// A value older than this many cycles is stale.
     #[arg(long, default_value_t = 0)]
     pub stale_after: u32,
     /// Stop after this many cycles (default: until Ctrl-C or the end of the capture).
     #[arg(long)]
     pub cycles: Option<u64>,
+    /// Print one cycle line in N (cycles with a missing node or lost frames are always
+    /// printed; every line carries the cumulative counters).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    pub every: u64,
+    /// Receive queue asked for the raw socket, in bytes (SO_RCVBUFFORCE when permitted, else
+    /// SO_RCVBUF up to net.core.rmem_max); a larger queue drops fewer frames when the monitor
+    /// falls behind.
+    #[arg(long, default_value_t = 4 << 20)]
+    pub rcvbuf: usize,
 }
 
 /// Options of `motus sim epl`.

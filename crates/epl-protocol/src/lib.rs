@@ -16,6 +16,12 @@
 //! * [`SafetyLease`]: the Motus safety lease (a manufacturer-specific ASnd) that grants or
 //!   revokes drives' permission to run.
 //! * [`ValueMap`]: per-node process values at PRes payload offsets (TOML `--map` files).
+//! * [`ObjectDictionary`] ([`od`]): an object dictionary serving [`ObjectAccess`], with the
+//!   built-in CN dictionary ([`ObjectDictionary::controlled_node`]) and the PDO mappings that
+//!   build the PRes payload and take the PReq payload.
+//! * [`Cdc`] ([`cdc`]): the concise DCF (`.cdc`) an MN reads, with each CN's configuration.
+//! * [`SdoServer`] / [`SdoClient`] ([`sdo_transfer`]): SDO over ASnd transfer engines (the
+//!   sequence layer and the command layer), with time as an input.
 //!
 //! ```
 //! use motus_epl_protocol::{EplFrame, Message, NmtState};
@@ -33,6 +39,7 @@
 #![forbid(unsafe_code)]
 
 pub mod asnd;
+pub mod cdc;
 pub mod codes;
 pub mod cycle;
 pub mod error;
@@ -41,9 +48,12 @@ pub mod flags;
 pub mod frame;
 pub mod ident;
 pub mod lease;
+pub mod object_access;
+pub mod od;
 pub mod preq;
 pub mod pres;
 pub mod sdo;
+pub mod sdo_transfer;
 pub mod soa;
 pub mod soc;
 pub mod status;
@@ -51,6 +61,7 @@ pub mod values;
 mod wire;
 
 pub use asnd::{Asnd, NmtCommand, NmtRequest};
+pub use cdc::{Cdc, CdcEntry, CdcError, NodeAssignment};
 pub use codes::{NmtCommandId, NmtState, RequestedService, SdoCommandId};
 
 pub use cycle::{CycleReport, CycleTracker, PresSeen};
@@ -60,9 +71,12 @@ pub use flags::{Flags, PrRs};
 pub use frame::{EplFrame, Message, Padding};
 pub use ident::{FixedText, IdentResponse};
 pub use lease::{SafetyLease, SAFETY_LEASE_SERVICE_ID};
+pub use object_access::{ObjectAccess, SdoAbortCode};
+pub use od::{DeviceIdentity, ObjectDictionary, PdoMapping};
 pub use preq::PReq;
 pub use pres::PRes;
 pub use sdo::{SdoCommand, SdoFrame};
+pub use sdo_transfer::{SdoClient, SdoConfig, SdoError, SdoServer, TransferId, TransferOutcome};
 pub use soa::{Soa, SyncRequest};
 pub use soc::{NetTime, Soc};
 pub use status::{StatusEntry, StatusResponse};

@@ -10,6 +10,8 @@
 //!   PRes time-outs, SoA, NMT commands) and Controlled Nodes that behave like servo drives,
 //!   driven by a [`sim::MotionProgram`].
 //! * [`netns`]: network namespaces joined by a bridge, for tests on a real kernel data path.
+//! * [`node`]: standards-based nodes that interoperate with openPOWERLINK: a Controlled Node
+//!   ([`node::cn`]) and a Managing Node ([`node::mn`]), sans-IO with runtimes on a link.
 //! * [`monitor`]: a passive listener that decodes every frame, groups them into cycles and
 //!   extracts mapped process values per node with freshness; [`replay`] feeds it from a pcap
 //!   or pcapng file.
@@ -17,11 +19,13 @@
 
 pub mod monitor;
 pub mod netns;
+pub mod node;
 pub mod replay;
 pub mod sim;
 pub mod transport;
 
-pub use monitor::{CycleSample, Monitor, MonitorConfig, MonitorStats, NodeSample};
+pub use monitor::{CycleSample, Monitor, MonitorConfig, MonitorStats, NodeCounters, NodeSample, TimingStats};
 pub use transport::{
-    open_link, EthLink, FaultConfig, FaultCounters, FaultyLink, PcapLink, RawSocket, UdpHub, UdpLink,
+    open_link, EthLink, FaultConfig, FaultCounters, FaultyLink, KernelRxStats, PcapLink, RawSocket, UdpHub,
+    UdpLink,
 };

@@ -7,7 +7,10 @@ use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use motus_epl::sim::{MnConfig, MotionProgram, Segment, SetpointList};
-use motus_epl::{open_link, CycleSample, EthLink, Monitor, MonitorConfig, PcapLink};
+use motus_epl::{
+    open_link, CycleSample, EthLink, Monitor, MonitorConfig, MonitorStats, NodeCounters, PcapLink, RawSocket,
+    TimingStats,
+};
 use motus_epl_protocol::ValueMap;
 use motus_safety::RuleSet;
 use motus_safety_epl::juggler::{self, Pattern};
@@ -19,6 +22,8 @@ use crate::cli_epl::{EplCommand, EplMonitorArgs, SimEplArgs};
 pub fn run(cmd: EplCommand) -> Result<()> {
     match cmd {
         EplCommand::Monitor(a) => monitor(a),
+        EplCommand::Mn(a) => super::epl_mn::run(a),
+        EplCommand::Cn(a) => super::epl_cn::run(a),
     }
 }
 
@@ -32,6 +37,34 @@ pub fn read_map(path: &Path) -> Result<ValueMap> {
 pub fn read_rules(path: &Path) -> Result<RuleSet> {
     let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     RuleSet::from_toml(&text).with_context(|| format!("invalid rules file {}", path.display()))
+}
+
+fn us(ns: u64) -> f64 {
+    ns as f64 / 1000.0
+}
+
+fn timing_json(t: &TimingStats) -> serde_json::Value {
+    if t.count == 0 {
+        return serde_json::Value::Null;
+    }
+    json!({
+        "count": t.count,
+        "min_us": us(t.min_ns),
+        "mean_us": t.mean_ns().map(us),
+        "max_us": us(t.max_ns),
+    })
+}
+
+/// The frame counters: received = decoded + undecoded; dropped before reception; the kernel's.
+fn frames_json(st: &MonitorStats) -> serde_json::Value {
+    json!({
+        "received": st.frames,
+        "decoded": st.decoded,
+        "undecoded": st.undecoded,
+        "dropped": st.dropped,
+        "kernel_packets": st.kernel.map(|k| k.packets),
+        "kernel_drops": st.kernel.map(|k| k.drops),
+    })
 }
 
 fn cycle_json(s: &CycleSample) -> serde_json::Value {
@@ -51,24 +84,134 @@ fn cycle_json(s: &CycleSample) -> serde_json::Value {
             })
         })
         .collect();
+    let pres: Vec<_> = s
+        .report
+        .pres
+        .iter()
+        .map(|p| {
+            json!({
+                "node": p.node,
+                "nmt_state": p.nmt_state.to_string(),
+                "ready": p.ready,
+                "after_soc_us": us(p.after_soc_ns),
+            })
+        })
+        .collect();
     json!({
         "cycle": s.index,
         "soc_ns": s.report.soc_at_ns,
+        "duration_us": s.report.duration_ns.map(us),
+        "complete": s.complete(),
+        "lost_frames": s.lost_frames,
         "polled": s.report.polled,
+        "pres": pres,
+        "missing": s.missing,
         "all_fresh": s.all_fresh(),
         "nodes": nodes,
+        "frames": frames_json(&s.stats),
     })
 }
 
+fn node_json(c: &NodeCounters) -> serde_json::Value {
+    json!({
+        "node": c.node,
+        "nmt_state": c.nmt_state.map(|s| s.to_string()),
+        "polled": c.polled,
+        "pres": c.pres,
+        "expected": c.expected,
+        "misses": c.misses,
+        "pres_after_soc": timing_json(&c.pres_after_soc),
+    })
+}
+
+fn summary_json(st: &MonitorStats, nodes: &[NodeCounters]) -> serde_json::Value {
+    json!({
+        "summary": {
+            "frames": frames_json(st),
+            "cycles": st.cycles,
+            "cycles_with_loss": st.cycles_with_loss,
+            "cycles_lost": st.cycles_lost,
+            "cycle_time": timing_json(&st.cycle_time),
+            "nodes": nodes.iter().map(node_json).collect::<Vec<_>>(),
+        }
+    })
+}
+
+fn timing_text(t: &TimingStats) -> String {
+    match t.mean_ns() {
+        Some(mean) => {
+            format!("mean {:.1} us, min {:.1} us, max {:.1} us", us(mean), us(t.min_ns), us(t.max_ns))
+        }
+        None => "none".into(),
+    }
+}
+
+fn summary_text(st: &MonitorStats, nodes: &[NodeCounters]) -> String {
+    let mut out = format!(
+        "frames: {} received = {} decoded + {} undecoded; {} dropped before reception",
+        st.frames, st.decoded, st.undecoded, st.dropped
+    );
+    match st.kernel {
+        Some(k) => out.push_str(&format!(
+            " (kernel: {} packets, {} dropped, {} not read)",
+            k.packets,
+            k.drops,
+            k.packets.saturating_sub(k.drops).saturating_sub(st.frames)
+        )),
+        None => out.push_str(" (no kernel counters for this source)"),
+    }
+    out.push_str(&format!(
+        "\ncycles: {} ({} with lost frames, {} SoCs lost), cycle time {}",
+        st.cycles,
+        st.cycles_with_loss,
+        st.cycles_lost,
+        timing_text(&st.cycle_time)
+    ));
+    for c in nodes {
+        out.push_str(&format!(
+            "\nnode {}: {}, polled {}, PRes {}, misses {} of {} expected, PRes after SoC {}",
+            c.node,
+            c.nmt_state.map_or("state unknown".to_string(), |s| s.to_string()),
+            c.polled,
+            c.pres,
+            c.misses,
+            c.expected,
+            timing_text(&c.pres_after_soc)
+        ));
+    }
+    out
+}
+
+/// Opens the monitor's link: a raw interface with the asked receive queue, or a named segment.
+fn open_monitor_link(name: &str, rcvbuf: usize) -> Result<Arc<dyn EthLink>> {
+    if name.starts_with("udp://") || name.starts_with("mem://") {
+        return open_link(name, true).with_context(|| format!("cannot open {name}"));
+    }
+    let raw = RawSocket::open(name, true).with_context(|| format!("cannot open {name}"))?;
+    let granted =
+        raw.set_recv_buffer(rcvbuf).with_context(|| format!("{name}: receive queue of {rcvbuf} bytes"))?;
+    eprintln!("receive queue: {granted} bytes (asked {rcvbuf})");
+    Ok(Arc::new(raw))
+}
+
 fn monitor(a: EplMonitorArgs) -> Result<()> {
-    let map = read_map(&a.map)?;
-    let mut monitor = Monitor::new(map, MonitorConfig { stale_after: u64::from(a.stale_after) });
+    let config = MonitorConfig { stale_after: u64::from(a.stale_after) };
+    let mut monitor = match &a.map {
+        Some(path) => Monitor::new(read_map(path)?, config),
+        None => Monitor::cycles_only(config),
+    };
     let limit = a.cycles.unwrap_or(u64::MAX);
-    let mut printed = 0u64;
+    let mut seen = 0u64;
+    // Cycles to skip before the next regular line (one line in `--every`).
+    let mut skip = 0u64;
     let mut print = |s: &CycleSample| {
-        println!("{}", cycle_json(s));
-        printed += 1;
-        if printed >= limit {
+        let regular = skip == 0;
+        skip = if regular { a.every.saturating_sub(1) } else { skip - 1 };
+        if regular || !s.missing.is_empty() || s.lost_frames > 0 {
+            println!("{}", cycle_json(s));
+        }
+        seen += 1;
+        if seen >= limit {
             ControlFlow::Break(())
         } else {
             ControlFlow::Continue(())
@@ -80,12 +223,14 @@ fn monitor(a: EplMonitorArgs) -> Result<()> {
         monitor.replay(&frames, print)
     } else {
         let name = a.interface.as_deref().unwrap_or_default();
-        let link = open_link(name, true).with_context(|| format!("cannot open {name}"))?;
+        let link = open_monitor_link(name, a.rcvbuf)?;
         eprintln!("monitoring {}; Ctrl-C to stop", link.describe());
         let stop = super::stop_flag()?;
         monitor.run(&*link, &stop, &mut print)?
     };
-    eprintln!("{} frames, {} undecoded, {} cycles", stats.frames, stats.undecoded, stats.cycles);
+    let nodes = monitor.node_counters();
+    println!("{}", summary_json(&stats, &nodes));
+    eprintln!("{}", summary_text(&stats, &nodes));
     Ok(())
 }
 

@@ -7,6 +7,8 @@ mod cnc;
 mod codec;
 mod demo;
 mod epl;
+mod epl_cn;
+mod epl_mn;
 mod gcode;
 mod kv01;
 mod nfv2;

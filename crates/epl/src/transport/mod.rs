@@ -27,6 +27,16 @@ pub use udp::{UdpHub, UdpLink};
 /// Largest frame a link passes (1514 bytes without FCS, plus room for a VLAN tag).
 pub const MAX_FRAME: usize = 1518;
 
+/// Receive counters the kernel keeps for a link's socket (`PACKET_STATISTICS` of a packet
+/// socket), cumulative since the link was opened.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct KernelRxStats {
+    /// Frames that reached the socket: queued for reading plus dropped.
+    pub packets: u64,
+    /// Frames the kernel dropped because the socket's receive queue was full.
+    pub drops: u64,
+}
+
 /// A receiver that a link runs for every frame its port receives, in the sending thread
 /// ([`EthLink::attach_receiver`]): the frame's bytes and the time it was sent.
 pub type FrameHandler = Box<dyn FnMut(&[u8], Instant) + Send>;
@@ -55,6 +65,20 @@ pub trait EthLink: Send + Sync {
     }
     /// Ends [`EthLink::attach_receiver`] and drops the handler: frames are queued again.
     fn detach_receiver(&self) {}
+    /// Frames lost on this port before the frame [`EthLink::recv`] returned last, cumulative
+    /// since the link was opened (the kernel's count carried by that frame, `SO_RXQ_OVFL`):
+    /// when it grows between two frames, that many frames were lost between them. `None`: the
+    /// link cannot tell.
+    fn rx_drops(&self) -> Option<u64> {
+        None
+    }
+    /// The kernel's receive counters of this port's socket. `Ok(None)`: the link has none.
+    ///
+    /// # Errors
+    /// The kernel did not return them.
+    fn kernel_rx_stats(&self) -> io::Result<Option<KernelRxStats>> {
+        Ok(None)
+    }
 }
 
 impl<T: EthLink + ?Sized> EthLink for Arc<T> {
@@ -76,6 +100,12 @@ impl<T: EthLink + ?Sized> EthLink for Arc<T> {
     fn detach_receiver(&self) {
         (**self).detach_receiver();
     }
+    fn rx_drops(&self) -> Option<u64> {
+        (**self).rx_drops()
+    }
+    fn kernel_rx_stats(&self) -> io::Result<Option<KernelRxStats>> {
+        (**self).kernel_rx_stats()
+    }
 }
 
 impl<T: EthLink + ?Sized> EthLink for Box<T> {
@@ -96,6 +126,12 @@ impl<T: EthLink + ?Sized> EthLink for Box<T> {
     }
     fn detach_receiver(&self) {
         (**self).detach_receiver();
+    }
+    fn rx_drops(&self) -> Option<u64> {
+        (**self).rx_drops()
+    }
+    fn kernel_rx_stats(&self) -> io::Result<Option<KernelRxStats>> {
+        (**self).kernel_rx_stats()
     }
 }
 

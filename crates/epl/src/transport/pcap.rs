@@ -103,6 +103,14 @@ impl<L: EthLink> EthLink for PcapLink<L> {
     fn describe(&self) -> String {
         format!("pcap({})", self.inner.describe())
     }
+
+    fn rx_drops(&self) -> Option<u64> {
+        self.inner.rx_drops()
+    }
+
+    fn kernel_rx_stats(&self) -> io::Result<Option<super::KernelRxStats>> {
+        self.inner.kernel_rx_stats()
+    }
 }
 
 impl<L> Drop for PcapLink<L> {

@@ -7,19 +7,34 @@
 //! when the socket closes) lets a monitor see unicast PReq addressed to other MACs on a real NIC;
 //! a veth or bridge port already passes them up to packet sockets.
 //!
+//! No frame is lost silently: every received frame carries the kernel's count of the frames
+//! the socket dropped so far (`SO_RXQ_OVFL`, [`EthLink::rx_drops`]), so a reader knows where
+//! frames are missing, and [`EthLink::kernel_rx_stats`] reads the socket's totals
+//! (`PACKET_STATISTICS`). [`RawSocket::set_recv_buffer`] enlarges the receive queue.
+//!
 //! This is the only module of the crate with `unsafe`: socket2 and nix have no safe way to build
-//! a `sockaddr_ll` for `bind` or to set PACKET_ADD_MEMBERSHIP.
+//! a `sockaddr_ll` for `bind`, to set PACKET_ADD_MEMBERSHIP or to read PACKET_STATISTICS.
 #![allow(unsafe_code)]
 
-use std::io::{self, Read};
+use std::io::{self, IoSliceMut};
 use std::mem::{size_of, zeroed};
 use std::os::fd::{AsFd, AsRawFd};
+use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 use motus_epl_protocol::{MacAddr, ETHERTYPE_EPL};
-use socket2::{Domain, Protocol, SockAddr, Socket, Type};
+use nix::sys::socket::{self as nixsock, sockopt, ControlMessageOwned, MsgFlags};
+use socket2::{Domain, SockAddr, Socket, Type};
 
-use super::{recv_with_timeout, EthLink};
+use super::{recv_with_timeout, EthLink, KernelRxStats};
+
+/// The kernel's drop count as carried by the received frames: a wrapping 32-bit counter,
+/// extended to 64 bits.
+#[derive(Debug, Default)]
+struct DropCount {
+    raw: u32,
+    total: u64,
+}
 
 /// A raw Ethernet port on a Linux interface (see the module documentation).
 #[derive(Debug)]
@@ -28,6 +43,8 @@ pub struct RawSocket {
     interface: String,
     ifindex: u32,
     mac: MacAddr,
+    drops: Mutex<DropCount>,
+    kernel: Mutex<KernelRxStats>,
 }
 
 impl RawSocket {
@@ -38,17 +55,19 @@ impl RawSocket {
         let ifindex = nix::net::if_::if_nametoindex(interface)
             .map_err(|e| io::Error::new(io::ErrorKind::NotFound, format!("interface {interface:?}: {e}")))?;
         let proto_be = ETHERTYPE_EPL.to_be();
-        let socket = Socket::new(Domain::PACKET, Type::RAW, Some(Protocol::from(i32::from(proto_be))))
-            .map_err(|e| {
-                if e.kind() == io::ErrorKind::PermissionDenied {
-                    io::Error::new(
-                        e.kind(),
-                        format!("raw socket on {interface}: {e} (needs root or CAP_NET_RAW)"),
-                    )
-                } else {
-                    e
-                }
-            })?;
+        // Protocol 0: the socket receives nothing until `bind` names the EtherType and the
+        // interface (a socket created with the EtherType would queue that EtherType from every
+        // interface until then).
+        let socket = Socket::new(Domain::PACKET, Type::RAW, None).map_err(|e| {
+            if e.kind() == io::ErrorKind::PermissionDenied {
+                io::Error::new(
+                    e.kind(),
+                    format!("raw socket on {interface}: {e} (needs root or CAP_NET_RAW)"),
+                )
+            } else {
+                e
+            }
+        })?;
         let ifindex_c = i32::try_from(ifindex)
             .map_err(|_| io::Error::new(io::ErrorKind::InvalidInput, "interface index out of range"))?;
         // SAFETY: `try_init` hands us zeroed storage of `sockaddr_storage` size, which is larger
@@ -65,18 +84,85 @@ impl RawSocket {
                 Ok(())
             })
         }?;
+        nixsock::setsockopt(&socket, sockopt::RxqOvfl, &1).map_err(io::Error::from)?;
         socket.bind(&addr)?;
         socket.set_nonblocking(true)?;
         if promiscuous {
             set_promiscuous(&socket, ifindex_c)?;
         }
         let mac = interface_mac(interface)?;
-        Ok(Self { socket, interface: interface.to_owned(), ifindex, mac })
+        Ok(Self {
+            socket,
+            interface: interface.to_owned(),
+            ifindex,
+            mac,
+            drops: Mutex::new(DropCount::default()),
+            kernel: Mutex::new(KernelRxStats::default()),
+        })
     }
 
     /// The interface index.
     pub fn ifindex(&self) -> u32 {
         self.ifindex
+    }
+
+    /// Asks for a receive queue of `bytes` (`SO_RCVBUFFORCE` when permitted, CAP_NET_ADMIN,
+    /// else `SO_RCVBUF`, capped by `net.core.rmem_max`); returns the size the kernel granted
+    /// (it doubles the request for its bookkeeping).
+    ///
+    /// # Errors
+    /// The kernel refused both options.
+    pub fn set_recv_buffer(&self, bytes: usize) -> io::Result<usize> {
+        if nixsock::setsockopt(&self.socket, sockopt::RcvBufForce, &bytes).is_err() {
+            self.socket.set_recv_buffer_size(bytes)?;
+        }
+        self.socket.recv_buffer_size()
+    }
+
+    /// One non-blocking receive with the drop count of the frame.
+    fn recv_once(&self, buf: &mut [u8]) -> io::Result<usize> {
+        let mut cmsg = nix::cmsg_space!(u32);
+        let mut iov = [IoSliceMut::new(buf)];
+        let msg =
+            nixsock::recvmsg::<()>(self.socket.as_raw_fd(), &mut iov, Some(&mut cmsg), MsgFlags::empty())
+                .map_err(io::Error::from)?;
+        // No SO_RXQ_OVFL message: the socket has dropped nothing yet.
+        let mut raw = 0u32;
+        for c in msg.cmsgs().map_err(io::Error::from)? {
+            if let ControlMessageOwned::RxqOvfl(n) = c {
+                raw = n;
+            }
+        }
+        let n = msg.bytes;
+        let mut d = self.drops.lock().unwrap_or_else(PoisonError::into_inner);
+        let delta = raw.wrapping_sub(d.raw);
+        d.raw = raw;
+        d.total += u64::from(delta);
+        Ok(n)
+    }
+}
+
+/// Reads and resets the socket's PACKET_STATISTICS (frames queued plus dropped, and dropped,
+/// since the last read).
+fn packet_statistics(socket: &Socket) -> io::Result<libc::tpacket_stats> {
+    let mut st = libc::tpacket_stats { tp_packets: 0, tp_drops: 0 };
+    let mut len = size_of::<libc::tpacket_stats>() as libc::socklen_t;
+    // SAFETY: the fd is an open packet socket owned by `socket`; `st` is a live, writable
+    // `tpacket_stats` and `len` holds its exact size, so the kernel writes at most that many
+    // bytes into it.
+    let rc = unsafe {
+        libc::getsockopt(
+            socket.as_raw_fd(),
+            libc::SOL_PACKET,
+            libc::PACKET_STATISTICS,
+            std::ptr::addr_of_mut!(st).cast::<libc::c_void>(),
+            &mut len,
+        )
+    };
+    if rc == 0 {
+        Ok(st)
+    } else {
+        Err(io::Error::last_os_error())
     }
 }
 
@@ -127,7 +213,20 @@ impl EthLink for RawSocket {
     }
 
     fn recv(&self, buf: &mut [u8], timeout: Duration) -> io::Result<Option<(usize, Instant)>> {
-        recv_with_timeout(self.socket.as_fd(), timeout, || (&self.socket).read(buf))
+        recv_with_timeout(self.socket.as_fd(), timeout, || self.recv_once(buf))
+    }
+
+    fn rx_drops(&self) -> Option<u64> {
+        Some(self.drops.lock().unwrap_or_else(PoisonError::into_inner).total)
+    }
+
+    fn kernel_rx_stats(&self) -> io::Result<Option<KernelRxStats>> {
+        // The kernel resets its counters on every read: keep the totals here.
+        let mut k = self.kernel.lock().unwrap_or_else(PoisonError::into_inner);
+        let st = packet_statistics(&self.socket)?;
+        k.packets += u64::from(st.tp_packets);
+        k.drops += u64::from(st.tp_drops);
+        Ok(Some(*k))
     }
 
     fn mac(&self) -> MacAddr {
