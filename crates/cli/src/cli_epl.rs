@@ -144,6 +144,11 @@ pub struct SimEplArgs {
     /// after the last renewal (0: leases ignored).
     #[arg(long, default_value_t = 20)]
     pub lease_ms: u64,
+    /// The drives take their lease from the PRes of this safety node (the supervisor as a
+    /// CN: `motus safety run --node N`), which the MN boots and polls after the drives; lease
+    /// ASnds are then ignored. Without it, the drives take the lease ASnd of node 253.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=239))]
+    pub safety_node: Option<u8>,
     /// Record the Managing Node's view (every frame it sends and receives) to a pcap file.
     #[arg(long)]
     pub pcap: Option<PathBuf>,
@@ -183,6 +188,18 @@ pub struct SafetyRunArgs {
     /// stay stopped until the operator types `reset` on standard input).
     #[arg(long)]
     pub auto_restart: bool,
+    /// Take part in the segment as the CN with this node ID (a safety node): SafeToRun and a
+    /// lease counter travel in its PRes, in the POWERLINK schedule, to every node. Without it,
+    /// the supervisor broadcasts lease ASnds from node 253 outside the schedule.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=239))]
+    pub node: Option<u8>,
+    /// As a safety node: the cycle length (object 0x1006) until the MN configures it.
+    #[arg(long, default_value_t = 1000, requires = "node")]
+    pub cycle_us: u32,
+    /// As a safety node: how late a SoC may come before it counts as lost (object 0x1C14),
+    /// microseconds. Losses drop the node to PRE_OPERATIONAL_1 and the drives stop.
+    #[arg(long, default_value_t = 5000, requires = "node")]
+    pub soc_tolerance_us: u32,
     /// Stop after this many seconds (default: until Ctrl-C).
     #[arg(long = "for")]
     pub duration: Option<f64>,

@@ -13,11 +13,23 @@
 //! | 8 | [u8; 8] | first 8 bytes of the approved configuration fingerprint |
 //!
 //! A drive that requires a lease runs only while the newest lease says safe and has not expired;
-//! a revoke or an expiry makes it quick-stop. This is a Motus convention (not in the POWERLINK
-//! specification); ServiceIDs 0xA0..=0xFE are reserved for manufacturer-specific services.
+//! a revoke or an expiry makes it quick-stop. The ASnd is a Motus convention (not in the
+//! POWERLINK specification; ServiceIDs 0xA0..=0xFE are reserved for manufacturer-specific
+//! services), sent outside the schedule from [`LEASE_ASND_NODE_ID`] only: a drive ignores a
+//! lease ASnd from any other node.
+//!
+//! On a segment with foreign nodes the supervisor is a CN instead, a *safety node*: the same
+//! body is the payload of its PRes, mapped from its dictionary (object 0x2100,
+//! [`crate::od::SAFETY_LEASE_OBJECT`]), with the sequence number as a lease counter that
+//! advances with every PRes. The PRes travels in the POWERLINK schedule, and every node
+//! receives it.
 
 use crate::asnd::Asnd;
 use serde::{Deserialize, Serialize};
+
+/// The node the lease ASnd comes from (253, POWERLINK's diagnostic device): drives take a
+/// lease ASnd from this node only.
+pub const LEASE_ASND_NODE_ID: u8 = 253;
 
 /// ServiceID of the safety lease ASnd.
 pub const SAFETY_LEASE_SERVICE_ID: u8 = 0xA5;

@@ -70,9 +70,9 @@ pub use ethernet::{EthernetHeader, MacAddr, ETHERTYPE_EPL, ETHERTYPE_VLAN, MIN_F
 pub use flags::{Flags, PrRs};
 pub use frame::{EplFrame, Message, Padding};
 pub use ident::{FixedText, IdentResponse};
-pub use lease::{SafetyLease, SAFETY_LEASE_SERVICE_ID};
+pub use lease::{SafetyLease, LEASE_ASND_NODE_ID, SAFETY_LEASE_SERVICE_ID};
 pub use object_access::{ObjectAccess, SdoAbortCode};
-pub use od::{DeviceIdentity, ObjectDictionary, PdoMapping};
+pub use od::{DeviceIdentity, ObjectDictionary, PdoMapping, SafetyNodeTiming, SAFETY_LEASE_OBJECT};
 pub use preq::PReq;
 pub use pres::PRes;
 pub use sdo::{SdoCommand, SdoFrame};

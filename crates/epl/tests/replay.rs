@@ -89,7 +89,11 @@ fn cycle_only_report_on_the_fixture_captures() {
         let captured = read_capture(fixture(name)).unwrap();
         assert_eq!(captured[0].at_ns, first_ns, "{name}");
         let (st, samples, nodes) = cycles_only(&captured);
-        assert_eq!((st.frames, st.decoded, st.undecoded, st.dropped), (frames, epl, frames - epl, 0), "{name}");
+        assert_eq!(
+            (st.frames, st.decoded, st.undecoded, st.dropped),
+            (frames, epl, frames - epl, 0),
+            "{name}"
+        );
         assert_eq!(st.kernel, None);
         assert_eq!((st.cycles, st.cycles_with_loss, st.cycles_lost), (socs, 0, 0), "{name}");
         let n1 = nodes[&1];

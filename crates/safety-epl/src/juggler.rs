@@ -109,6 +109,7 @@ pub fn drives(rules: &RuleSet, pattern: Pattern, lease_timeout: Option<Duration>
                 brake_decel: a.braking.up.min(a.braking.down) * k,
                 initial_position: c.at(0.0),
                 lease_timeout,
+                safety_node: None,
                 soc_loss_tolerance: None,
             };
             (u8::try_from(a.id).unwrap_or(0), params)

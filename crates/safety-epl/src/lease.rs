@@ -5,11 +5,12 @@ use std::time::{Duration, Instant};
 
 use motus_clock::{SharedClock, SystemClock};
 use motus_epl::EthLink;
-use motus_epl_protocol::{EplFrame, MacAddr, Message, SafetyLease, BROADCAST_NODE_ID};
+use motus_epl_protocol::{EplFrame, MacAddr, Message, SafetyLease, BROADCAST_NODE_ID, LEASE_ASND_NODE_ID};
 use motus_safety::{Lease, StopError, StopTarget};
 
-/// Node ID the supervisor sends from (253, POWERLINK's diagnostic device).
-pub const SUPERVISOR_NODE_ID: u8 = 253;
+/// Node ID the supervisor sends from (253, POWERLINK's diagnostic device; drives take a lease
+/// ASnd from this node only).
+pub const SUPERVISOR_NODE_ID: u8 = LEASE_ASND_NODE_ID;
 
 /// Broadcasts safety leases on a POWERLINK link (see the module documentation of
 /// [`motus_epl_protocol::lease`]).

@@ -7,8 +7,12 @@
 //! * [`juggler`]: the simulated juggler's drives, patterns (juggle, limit, collide) and value
 //!   map, derived from a rules file.
 //! * [`lease`]: [`lease::EplLeaseTarget`], a [`motus_safety::StopTarget`] that broadcasts the
-//!   safety lease ASnd ([`motus_epl_protocol::SafetyLease`]): renewals while SafeToRun holds, a
+//!   safety lease ASnd from node 253 (the simulated segment of the demo) ([`motus_epl_protocol::SafetyLease`]): renewals while SafeToRun holds, a
 //!   revoke (quick stop of every drive) the moment it falls.
+//! * [`safety_node`]: [`safety_node::SafetyNode`], the supervisor as a CN of the segment: a
+//!   standards CN whose PRes carries SafeToRun and a lease counter to every node (cross
+//!   traffic), the way to stop drives on a segment with foreign nodes, and
+//!   [`safety_node::SafetyNodeTarget`], its stop target.
 //! * [`runner`]: [`runner::OnlineSupervisor`] evaluates the rules on **every** PRes and SoC
 //!   (not once per cycle: the reaction starts at the frame that makes the state unsafe),
 //!   applies the decision through a [`motus_safety::Fanout`] (the lease target plus any axes of
@@ -25,9 +29,11 @@ pub mod inputs;
 pub mod juggler;
 pub mod lease;
 pub mod runner;
+pub mod safety_node;
 pub mod watcher;
 
 pub use inputs::{InputError, InputMap};
 pub use lease::EplLeaseTarget;
 pub use runner::{Command, OnlineConfig, OnlineEvent, OnlineSupervisor, ReactionStats, ServeEvent};
+pub use safety_node::{SafetyNode, SafetyNodeConfig, SafetyNodeTarget};
 pub use watcher::{InputsFor, IntegrityWatcher};

@@ -7,6 +7,10 @@
 //! Between frames, [`OnlineSupervisor::tick`] stops the targets when the last lease expired
 //! (no frames: stale data is unsafe, and a silent segment must not keep drives running).
 //!
+//! As a safety node ([`OnlineSupervisor::with_safety_node`]) the supervisor is also a CN of
+//! the segment: the loop gives the node every frame before evaluating it, and the node
+//! publishes the decision in its PRes ([`crate::safety_node`]).
+//!
 //! Time comes from a [`motus_clock::Clock`] ([`OnlineSupervisor::with_clock`]; the system
 //! clock by default): the reaction time, the lease checks between frames, and the waits of
 //! [`OnlineSupervisor::run`] on its link. On a threaded [`motus_clock::VirtualClock`] shared
@@ -26,6 +30,7 @@ use motus_epl_protocol::{EplFrame, Message};
 use motus_safety::{CycleInput, Fanout, Mode, Restart, RuleSet, Sample, StopTarget, Supervisor};
 
 use crate::inputs::InputMap;
+use crate::safety_node::SafetyNode;
 
 /// Options of the online supervisor.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -133,6 +138,7 @@ pub struct OnlineSupervisor {
     frames: u64,
     integrity_checks: u64,
     clock: SharedClock,
+    node: Option<SafetyNode>,
 }
 
 impl OnlineSupervisor {
@@ -161,7 +167,28 @@ impl OnlineSupervisor {
             frames: 0,
             integrity_checks: 0,
             clock: SystemClock::shared(),
+            node: None,
         }
+    }
+
+    /// Takes part in the segment as `node`, a safety node whose target is among this
+    /// supervisor's targets ([`SafetyNode::new`]): [`OnlineSupervisor::run`] gives it every
+    /// frame first (a PReq for it is answered with the decision of the frames before) and
+    /// polls it on every pass.
+    #[must_use]
+    pub fn with_safety_node(mut self, node: SafetyNode) -> Self {
+        self.node = Some(node);
+        self
+    }
+
+    /// The safety node, when the supervisor is one.
+    pub fn safety_node(&self) -> Option<&SafetyNode> {
+        self.node.as_ref()
+    }
+
+    /// The safety node, to take its events.
+    pub fn safety_node_mut(&mut self) -> Option<&mut SafetyNode> {
+        self.node.as_mut()
     }
 
     /// Runs on `clock` (the link's and the lease target's; `origin` is an instant of it).
@@ -404,7 +431,11 @@ impl OnlineSupervisor {
             }
             let event = match link.recv(&mut buf, poll) {
                 Ok(Some((n, at))) => {
-                    let e = self.on_frame(buf.get(..n).unwrap_or(&[]), at);
+                    let raw = buf.get(..n).unwrap_or(&[]);
+                    if let Some(node) = self.node.as_mut() {
+                        node.on_frame(raw, at);
+                    }
+                    let e = self.on_frame(raw, at);
                     e.or_else(|| self.tick(self.clock.now()))
                 }
                 Ok(None) => self.tick(self.clock.now()),
@@ -418,6 +449,10 @@ impl OnlineSupervisor {
                 if on_event(self, &ServeEvent::Online(e)).is_break() {
                     break;
                 }
+            }
+            let now = self.clock.now();
+            if let Some(node) = self.node.as_mut() {
+                node.poll(now);
             }
             if on_event(self, &ServeEvent::Pass).is_break() {
                 break;

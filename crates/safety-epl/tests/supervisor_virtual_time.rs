@@ -19,12 +19,13 @@ use motus_epl::sim::{MnConfig, Segment};
 use motus_epl::transport::MemHub;
 use motus_epl::{Monitor, MonitorConfig};
 use motus_epl_protocol::Value;
+use motus_epl_protocol::{EplFrame, MacAddr, Message, PRes, SafetyLease, SafetyNodeTiming};
 use motus_realtime::{mailbox, MailboxSender};
 use motus_safety::{Restart, RuleSet, JUGGLER_DRIVES_TOML, JUGGLER_TOML};
 use motus_safety_epl::juggler::{self, Pattern};
 use motus_safety_epl::{
     Command, EplLeaseTarget, InputMap, IntegrityWatcher, OnlineConfig, OnlineEvent, OnlineSupervisor,
-    ServeEvent,
+    SafetyNode, SafetyNodeConfig, ServeEvent,
 };
 
 /// The juggler's cycle (the shipped rules' `cycle_time`).
@@ -54,6 +55,7 @@ impl Drop for StopOnDrop {
 
 struct Rig {
     clock: VirtualClock,
+    hub: MemHub,
     segment: Option<Segment>,
     stop_sup: StopOnDrop,
     sup: Option<JoinHandle<OnlineSupervisor>>,
@@ -77,6 +79,18 @@ enum Integrity {
 }
 
 fn rig(label: &str, pattern: Pattern, restart: Restart, integrity: Integrity) -> Rig {
+    rig_with(label, pattern, restart, integrity, None)
+}
+
+/// [`rig`], with the supervisor as safety node `safety_node` (its PRes carries SafeToRun;
+/// the drives read it there) instead of the lease ASnd.
+fn rig_with(
+    label: &str,
+    pattern: Pattern,
+    restart: Restart,
+    integrity: Integrity,
+    safety_node: Option<u8>,
+) -> Rig {
     let wall = std::time::Instant::now();
     let rules = RuleSet::from_toml(JUGGLER_TOML).unwrap();
     assert_eq!(rules.config().supervisor.cycle_time, CYCLE.as_secs_f64());
@@ -126,16 +140,27 @@ fn rig(label: &str, pattern: Pattern, restart: Restart, integrity: Integrity) ->
     let sup_link: Arc<dyn motus_epl::EthLink> = Arc::new(hub.connect());
     let origin = clock.now();
     let renew = Duration::from_secs_f64(rules.config().supervisor.cycle_time);
-    let target = EplLeaseTarget::new(Arc::clone(&sup_link), origin, WIRE_LEASE, renew, [0; 8])
-        .with_clock(Arc::clone(&shared));
     let inputs = InputMap::new(&rules, map, STATUS_HOMED).unwrap();
-    let mut sup = OnlineSupervisor::new(
-        rules.clone(),
-        inputs,
-        vec![Box::new(target)],
-        origin,
-        OnlineConfig { restart, ..OnlineConfig::default() },
-    )
+    let config = OnlineConfig { restart, ..OnlineConfig::default() };
+    let mut sup = match safety_node {
+        None => {
+            let target = EplLeaseTarget::new(Arc::clone(&sup_link), origin, WIRE_LEASE, renew, [0; 8])
+                .with_clock(Arc::clone(&shared));
+            OnlineSupervisor::new(rules.clone(), inputs, vec![Box::new(target)], origin, config)
+        }
+        Some(node_id) => {
+            let node_config = SafetyNodeConfig {
+                node_id,
+                timing: SafetyNodeTiming { cycle: CYCLE, soc_tolerance: CYCLE },
+                wire_lease: WIRE_LEASE,
+                fingerprint: [0; 8],
+            };
+            let (node, target) =
+                SafetyNode::new(&node_config, Arc::clone(&sup_link), Arc::clone(&shared), origin).unwrap();
+            OnlineSupervisor::new(rules.clone(), inputs, vec![Box::new(target)], origin, config)
+                .with_safety_node(node)
+        }
+    }
     .with_clock(Arc::clone(&shared));
     let (commands, rx) = mailbox();
     match integrity {
@@ -173,14 +198,19 @@ fn rig(label: &str, pattern: Pattern, restart: Restart, integrity: Integrity) ->
         .config(MnConfig { cycle: CYCLE, pres_timeout: Duration::from_micros(150), ..MnConfig::default() })
         .mn_link(Arc::new(hub.connect()))
         .program(Box::new(juggler::program(&rules, pattern)));
-    for (node, params) in juggler::drives(&rules, pattern, Some(WIRE_LEASE)) {
+    for (node, mut params) in juggler::drives(&rules, pattern, Some(WIRE_LEASE)) {
+        params.safety_node = safety_node;
         b = b.drive(node, Arc::new(hub.connect()), params);
+    }
+    if let Some(n) = safety_node {
+        b = b.polled_node(n);
     }
     let segment = b.start().unwrap();
     assert!(segment.wait_operational(Duration::from_secs(2)), "{label}: MN {}", segment.mn_state());
     eprintln!("{label}: OPERATIONAL after {:?} of virtual time", clock.since_base());
     Rig {
         clock,
+        hub,
         segment: Some(segment),
         stop_sup: StopOnDrop(stop_sup),
         sup: Some(handle),
@@ -201,6 +231,11 @@ impl Rig {
         let c = CYCLE.as_nanos() as u64;
         let next = (self.clock.since_base().as_nanos() as u64 / c + 1) * c + c / 2;
         self.clock.sleep_until(self.clock.base() + Duration::from_nanos(next));
+    }
+
+    /// One more link on the segment (for a test's own node).
+    fn forger_link(&self) -> motus_epl::transport::MemLink {
+        self.hub.connect()
     }
 
     fn events(&self) -> Vec<(Instant, ServeEvent)> {
@@ -474,4 +509,117 @@ fn an_unapproved_change_on_disk_stops_the_drives_at_the_next_check() {
     }
     let sup = rig.finish(label);
     assert!(sup.integrity_checks() >= 4, "{label}: {}", sup.integrity_checks());
+}
+
+/// The supervisor's node ID as a safety node (polled after the drives 1..=5).
+const SAFETY_NODE: u8 = 100;
+
+#[test]
+fn as_a_safety_node_the_supervisor_stops_the_thrower_through_its_pres() {
+    let label = "vt safety node limit";
+    let rig = rig_with(label, Pattern::Limit, Restart::Manual, Integrity::Ok, Some(SAFETY_NODE));
+    rig.clock.sleep(Duration::from_millis(800));
+    let events = rig.events();
+    let stops = stops_by_frames(&events);
+    assert_eq!(stops.len(), 2, "{label}: {events:?}");
+    let (at, why, _) = &stops[1];
+    assert!(why.starts_with("rule limits_thrower"), "{label}: {why}");
+    let trace = rig.trace();
+    let max = trace.iter().map(|c| c.thrower).max().unwrap();
+    eprintln!("{label}: thrower max {max} raw (limit {THROWER_LIMIT_RAW})");
+    assert!(max < THROWER_LIMIT_RAW, "{label}: the thrower passed its limit: {max} raw");
+    // The node is polled after the drives: its PRes of the same cycle carries the stop, and
+    // every drive brakes from the next SoC, as with the lease ASnd.
+    let first_lease_stop = trace
+        .iter()
+        .position(|c| c.soc > *at && c.status.iter().any(|s| s & STATUS_LEASE_STOP != 0))
+        .unwrap();
+    assert_eq!(trace[first_lease_stop].soc, *at + CYCLE, "{label}");
+    assert!(trace[first_lease_stop].status.iter().all(|s| s & STATUS_LEASE_STOP != 0), "{label}");
+    let last = trace.last().unwrap();
+    assert!(last.speeds.iter().all(|v| *v == 0), "{label}: speeds {:?}", last.speeds);
+    let sup = rig.finish(label);
+    let node = sup.safety_node().unwrap();
+    eprintln!(
+        "{label}: {} PRes; stops published {:?} ns after the decision",
+        node.pres_sent(),
+        node.stop_published_ns()
+    );
+    // Both stops (start-up, the limit) published, each in the PRes of the cycle of the decision
+    // or, for the start-up stop decided while the node was booting, its first PRes.
+    assert_eq!(node.stop_published_ns().len(), 2, "{label}");
+    assert!(node.stop_published_ns()[1] < CYCLE.as_nanos() as u64, "{label}");
+}
+
+/// A node that is not the safety node forging leases every cycle: lease ASnds from node 253
+/// and from the safety node's ID, and a PRes from node 101 with a safe lease body.
+fn forge_leases(hub_link: motus_epl::transport::MemLink, clock: SharedClock, stop: Arc<AtomicBool>) {
+    let mut seq = 0u16;
+    let send = |src: u8, message: Message| {
+        let frame = EplFrame::new(MacAddr([2, 0, 0, 0, 0, src]), MacAddr::BROADCAST, 255, src, message);
+        motus_epl::EthLink::send(&hub_link, &frame.encode().unwrap()).unwrap();
+    };
+    while !stop.load(Ordering::Relaxed) {
+        seq = seq.wrapping_add(1);
+        let lease = SafetyLease { safe: true, seq, valid_for_us: 1_000_000, fingerprint: [0; 8] };
+        send(253, Message::Asnd(lease.to_asnd()));
+        send(SAFETY_NODE, Message::Asnd(lease.to_asnd()));
+        let pres = PRes {
+            nmt_state: motus_epl_protocol::NmtState::Operational,
+            flags: motus_epl_protocol::Flags::RD,
+            pr_rs: motus_epl_protocol::PrRs::default(),
+            pdo_version: 0,
+            payload: lease.encode().to_vec(),
+            reserved: 0,
+        };
+        send(101, Message::PRes(pres));
+        clock.sleep(CYCLE / 2);
+    }
+}
+
+#[test]
+fn killing_the_safety_node_stops_the_drives_and_forged_leases_do_not_help() {
+    let label = "vt safety node dies";
+    let rig = rig_with(label, Pattern::Juggle, Restart::Manual, Integrity::Ok, Some(SAFETY_NODE));
+    rig.clock.sleep(Duration::from_millis(400));
+    let trace = rig.trace();
+    assert!(trace.iter().rev().take(100).any(|c| c.speeds.iter().any(|v| *v != 0)), "{label}: not moving");
+    assert!(
+        trace.iter().rev().take(900).all(|c| c.status.iter().all(|s| s & STATUS_LEASE_STOP == 0)),
+        "{label}: juggling runs under the safety node's PRes"
+    );
+    // A forger joins the segment, then the supervisor ends.
+    let hub_link = rig.forger_link();
+    let stop_forger = Arc::new(AtomicBool::new(false));
+    let forger = {
+        let (clock, stop) = (rig.clock.shared(), Arc::clone(&stop_forger));
+        motus_clock::spawn(
+            &rig.clock.shared(),
+            std::thread::Builder::new().name("forger".into()),
+            move || forge_leases(hub_link, clock, stop),
+        )
+        .unwrap()
+    };
+    rig.between_cycles();
+    let killed_at = rig.clock.now();
+    rig.stop_sup.0.store(true, Ordering::Relaxed);
+    rig.clock.sleep(Duration::from_millis(300));
+    let last_pass = rig.last_pass.lock().unwrap().unwrap();
+    let trace = rig.trace();
+    let after: Vec<&Cycle> = trace.iter().filter(|c| c.soc > killed_at).collect();
+    let first_stop = after.iter().position(|c| c.status.iter().any(|s| s & STATUS_LEASE_STOP != 0)).unwrap();
+    let lease_out = after[first_stop].soc;
+    eprintln!("{label}: lease stop {:?} after the supervisor's last pass", lease_out - last_pass);
+    // The last renewal is the node's last PRes, in the cycle of the last pass.
+    assert!(lease_out >= last_pass + WIRE_LEASE - CYCLE, "{label}");
+    assert!(lease_out <= last_pass + WIRE_LEASE + CYCLE, "{label}: the forged leases kept the drives going");
+    assert!(after[first_stop].status.iter().all(|s| s & STATUS_LEASE_STOP != 0), "{label}: every drive");
+    let at_rest = after.iter().position(|c| c.speeds.iter().all(|v| *v == 0)).unwrap();
+    assert!(
+        after[at_rest..].iter().all(|c| c.speeds.iter().all(|v| *v == 0)),
+        "{label}: a drive moved again"
+    );
+    stop_forger.store(true, Ordering::Relaxed);
+    motus_clock::while_blocked(&rig.clock, || forger.join()).unwrap();
+    rig.finish(label);
 }

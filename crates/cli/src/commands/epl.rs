@@ -286,7 +286,18 @@ pub fn sim(a: SimEplArgs) -> Result<()> {
         Err(e) => bail!("--program: {e}, and no file {:?}", a.program),
     };
     let lease = (a.lease_ms > 0).then(|| Duration::from_millis(a.lease_ms));
-    let drives = juggler::drives(&rules, pattern, lease);
+    let mut drives = juggler::drives(&rules, pattern, lease);
+    if a.safety_node.is_some() && lease.is_none() {
+        bail!("--safety-node needs a lease (--lease-ms > 0)");
+    }
+    if let Some(n) = a.safety_node {
+        if drives.iter().any(|(node, _)| *node == n) {
+            bail!("--safety-node {n} is one of the drives' node IDs");
+        }
+    }
+    for (_, params) in &mut drives {
+        params.safety_node = a.safety_node;
+    }
     let links: Vec<Arc<dyn EthLink>> = if a.interface.starts_with("udp://") {
         (0..=n)
             .map(|_| open_link(&a.interface, false).with_context(|| format!("cannot join {}", a.interface)))
@@ -316,6 +327,9 @@ pub fn sim(a: SimEplArgs) -> Result<()> {
     for ((node, params), link) in drives.into_iter().zip(links) {
         b = b.drive(node, link, params);
     }
+    if let Some(n) = a.safety_node {
+        b = b.polled_node(n);
+    }
     let segment = b.start()?;
     eprintln!(
         "simulated POWERLINK segment on {}: MN 240 + drives {:?}, cycle {} us, program {}, lease {}",
@@ -323,7 +337,11 @@ pub fn sim(a: SimEplArgs) -> Result<()> {
         rules.axes().iter().map(|x| x.id).collect::<Vec<_>>(),
         a.cycle_us,
         a.program,
-        lease.map_or("ignored".into(), |l| format!("{l:?}")),
+        match (lease, a.safety_node) {
+            (None, _) => "ignored".to_owned(),
+            (Some(l), Some(n)) => format!("{l:?} from the PRes of safety node {n}"),
+            (Some(l), None) => format!("{l:?} from the lease ASnd of node 253"),
+        },
     );
     let stop = super::stop_flag()?;
     let mut reported = false;

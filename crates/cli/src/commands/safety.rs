@@ -7,12 +7,14 @@ use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{bail, Context, Result};
+use motus_clock::SystemClock;
 use motus_epl::open_link;
 use motus_epl::sim::pdo::STATUS_HOMED;
+use motus_epl_protocol::SafetyNodeTiming;
 use motus_safety::{config_files, ConfigFiles, Mode, Restart, RuleSet};
 use motus_safety_epl::{
     juggler, Command, EplLeaseTarget, InputMap, InputsFor, IntegrityWatcher, OnlineConfig, OnlineEvent,
-    OnlineSupervisor, ServeEvent,
+    OnlineSupervisor, SafetyNode, SafetyNodeConfig, ServeEvent,
 };
 use serde_json::json;
 
@@ -94,8 +96,27 @@ fn online(a: SafetyRunArgs) -> Result<()> {
     let inputs = inputs_for(&set)?;
     let renew = Duration::from_secs_f64(set.config().supervisor.cycle_time.max(0.0001));
     let wire_lease = Duration::from_millis(a.wire_lease_ms);
-    let target = EplLeaseTarget::new(Arc::clone(&link), origin, wire_lease, renew, [0; 8]);
-    let mut sup = OnlineSupervisor::new(set.clone(), inputs, vec![Box::new(target)], origin, config);
+    let mut sup = match a.node {
+        None => {
+            let target = EplLeaseTarget::new(Arc::clone(&link), origin, wire_lease, renew, [0; 8]);
+            OnlineSupervisor::new(set.clone(), inputs, vec![Box::new(target)], origin, config)
+        }
+        Some(node_id) => {
+            let node_config = SafetyNodeConfig {
+                node_id,
+                timing: SafetyNodeTiming {
+                    cycle: Duration::from_micros(u64::from(a.cycle_us)),
+                    soc_tolerance: Duration::from_micros(u64::from(a.soc_tolerance_us)),
+                },
+                wire_lease,
+                fingerprint: [0; 8],
+            };
+            let (node, target) =
+                SafetyNode::new(&node_config, Arc::clone(&link), SystemClock::shared(), origin)?;
+            OnlineSupervisor::new(set.clone(), inputs, vec![Box::new(target)], origin, config)
+                .with_safety_node(node)
+        }
+    };
     let stop = super::stop_flag()?;
     let (commands, rx) = motus_realtime::mailbox::<Command>();
     // Operator commands on standard input.
@@ -130,15 +151,17 @@ fn online(a: SafetyRunArgs) -> Result<()> {
         }
     }
     eprintln!(
-        "supervising {} with {} ({} axes, {} rules){}; Ctrl-C to stop",
+        "supervising {}{} with {} ({} axes, {} rules){}; Ctrl-C to stop",
         link.describe(),
+        a.node.map_or(String::new(), |n| format!(" as safety node {n} (SafeToRun in its PRes)")),
         a.rules.display(),
         sup.supervisor().rules().axes().len(),
         sup.supervisor().rules().rules().len(),
         if watching { "" } else { "; INTEGRITY CHECK DISABLED" }
     );
     let end = a.duration.map(|s| Instant::now() + Duration::from_secs_f64(s.max(0.0)));
-    let result = sup.run(&*link, &rx, &stop, Duration::from_millis(1), |_, event| {
+    let mut node_state = None;
+    let result = sup.run(&*link, &rx, &stop, Duration::from_millis(1), |sup, event| {
         let t = origin.elapsed().as_secs_f64();
         match event {
             ServeEvent::Online(OnlineEvent::Safe { cycle, held }) => {
@@ -164,6 +187,13 @@ fn online(a: SafetyRunArgs) -> Result<()> {
             ServeEvent::Reset => println!("{}", json!({ "event": "reset" })),
             ServeEvent::Stopped => println!("{}", json!({ "event": "operator_stop" })),
             ServeEvent::Pass => {
+                let state = sup.safety_node().map(SafetyNode::state);
+                if state != node_state {
+                    node_state = state;
+                    if let Some(s) = state {
+                        println!("{}", json!({ "t": t, "event": "node", "state": s.to_string() }));
+                    }
+                }
                 if end.is_some_and(|e| Instant::now() >= e) {
                     return ControlFlow::Break(());
                 }
@@ -185,5 +215,20 @@ fn online(a: SafetyRunArgs) -> Result<()> {
         p.max as f64 / 1e3,
         p.count
     );
+    if let Some(node) = sup.safety_node() {
+        let t = node.turnaround();
+        let published = motus_epl::sim::Percentiles::of(node.stop_published_ns());
+        eprintln!(
+            "safety node {}: {} PRes, turnaround p50 {:.1} us p99 {:.1} us; stops published in the PRes \
+             p50 {:.1} us max {:.1} us after the decision ({} stops)",
+            node.node_id(),
+            node.pres_sent(),
+            t.p50 as f64 / 1e3,
+            t.p99 as f64 / 1e3,
+            published.p50 as f64 / 1e3,
+            published.max as f64 / 1e3,
+            published.count
+        );
+    }
     Ok(())
 }

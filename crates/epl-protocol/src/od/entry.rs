@@ -378,6 +378,11 @@ impl Entry {
         Ok(())
     }
 
+    /// Makes the current value the default (what a reset restores).
+    pub(super) fn keep_as_default(&mut self) {
+        self.default.clone_from(&self.value);
+    }
+
     /// Puts the default value back.
     pub(super) fn restore(&mut self) {
         self.value.clone_from(&self.default);

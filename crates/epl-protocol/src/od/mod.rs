@@ -10,6 +10,8 @@
 //! * [`ObjectDictionary::controlled_node`] (`cn_profile.rs`) builds the dictionary of a CN
 //!   that the openPOWERLINK demo MN boots and configures: the communication profile and the
 //!   CiA 401 digital I/O of openPOWERLINK's `00000000_POWERLINK_CiA401_CN.xdd`.
+//! * [`ObjectDictionary::safety_node`] (`safety_node.rs`) adds to it the safety lease object
+//!   of a supervisor that is a CN (0x2100), mapped into its PRes by default.
 //! * `mapping.rs`: the 64-bit mapping entries and the typed [`PdoMapping`].
 //!
 //! A PDO mapping is checked whenever it could change: a write that would leave an enabled
@@ -21,6 +23,7 @@
 mod cn_profile;
 mod entry;
 mod mapping;
+mod safety_node;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::RangeInclusive;
@@ -31,6 +34,7 @@ pub use mapping::{
     MappedObject, MappingEntry, MappingError, PdoDirection, PdoError, PdoMapping, ISOCHRONOUS_MAX_PAYLOAD,
     RPDO_COMM_BASE, RPDO_MAPPING_BASE, TPDO_COMM_BASE, TPDO_MAPPING_BASE,
 };
+pub use safety_node::{SafetyNodeTiming, SAFETY_LEASE_OBJECT};
 
 use crate::object_access::{ObjectAccess, SdoAbortCode};
 
@@ -227,6 +231,20 @@ impl ObjectDictionary {
     /// As [`ObjectDictionary::set`].
     pub fn set_bool(&mut self, index: u16, subindex: u8, value: bool) -> Result<(), SdoAbortCode> {
         self.set(index, subindex, &[u8::from(value)])
+    }
+
+    /// [`ObjectDictionary::set`] that also makes `value` the entry's default, which the NMT
+    /// resets restore ([`ObjectDictionary::restore_defaults`]): the device's own
+    /// configuration, such as a default PDO mapping.
+    ///
+    /// # Errors
+    /// As [`ObjectDictionary::set`]; nothing changes then.
+    pub fn set_default(&mut self, index: u16, subindex: u8, value: &[u8]) -> Result<(), SdoAbortCode> {
+        self.set(index, subindex, value)?;
+        if let Some(entry) = self.objects.get_mut(&index).and_then(|o| o.entry_mut(subindex)) {
+            entry.keep_as_default();
+        }
+        Ok(())
     }
 
     /// The entries written through [`ObjectAccess::write`] (by an SDO client) since the last

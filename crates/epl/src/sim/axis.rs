@@ -16,6 +16,11 @@ pub struct DriveParams {
     /// ([`motus_epl_protocol::SafetyLease`]) no longer ago than this: a revoke, or no renewal
     /// within this time, makes it quick-stop. `None`: leases are ignored.
     pub lease_timeout: Option<std::time::Duration>,
+    /// Where the lease comes from (with [`DriveParams::lease_timeout`]): `Some(n)`, the PRes
+    /// of safety node `n` (the supervisor as a CN: a renewal needs the RD flag and a lease
+    /// counter that advanced; lease ASnds are ignored); `None`, the lease ASnd of node 253
+    /// ([`motus_epl_protocol::LEASE_ASND_NODE_ID`]). A lease from any other node is ignored.
+    pub safety_node: Option<u8>,
     /// When set, a drive beyond PRE_OPERATIONAL_1 whose SoC comes this long or longer after
     /// the previous one (it lost SoCs: its cable was pulled, the MN stopped) has a cycle error
     /// and drops to PRE_OPERATIONAL_1, to be booted again by the MN (`specs/powerlink.md` §5,
@@ -33,6 +38,7 @@ impl Default for DriveParams {
             brake_decel: 1_600_000.0,
             initial_position: 0.0,
             lease_timeout: None,
+            safety_node: None,
             soc_loss_tolerance: None,
         }
     }

@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 
 use motus_epl_protocol::{
     Asnd, EplFrame, FixedText, Flags, IdentResponse, MacAddr, Message, NmtCommandId, NmtState, PRes, PrRs,
-    RequestedService, SafetyLease, StatusResponse, BROADCAST_NODE_ID, MN_NODE_ID,
+    RequestedService, SafetyLease, StatusResponse, BROADCAST_NODE_ID, LEASE_ASND_NODE_ID, MN_NODE_ID,
 };
 
 use super::axis::{AxisModel, DriveParams};
@@ -49,6 +49,10 @@ pub(crate) struct Cn {
     lease_timeout: Option<Duration>,
     /// Expiry of the newest safe lease (`None`: none yet, or revoked).
     lease_until: Option<Instant>,
+    /// The node whose PRes carries the lease (see [`DriveParams::safety_node`]).
+    safety_node: Option<u8>,
+    /// The lease counter of the last renewal from the safety node.
+    last_lease_seq: Option<u16>,
     soc_loss_tolerance: Option<Duration>,
     /// Reception time of the last SoC.
     last_soc_at: Option<Instant>,
@@ -70,6 +74,8 @@ impl Cn {
             last_relative_us: None,
             lease_timeout: params.lease_timeout,
             lease_until: None,
+            safety_node: params.safety_node,
+            last_lease_seq: None,
             soc_loss_tolerance: params.soc_loss_tolerance,
             last_soc_at: None,
             shared,
@@ -184,13 +190,41 @@ impl Cn {
         }
     }
 
+    /// The lease in a PRes of the safety node: a renewal needs the RD flag (the node is
+    /// OPERATIONAL) and a counter that advanced (a node answering from a frozen buffer renews
+    /// nothing); SafeToRun false revokes at once, whatever the flags.
+    fn on_safety_pres(&mut self, pres: &PRes, at: Instant) {
+        let Some(lease) = SafetyLease::decode(&pres.payload) else { return };
+        if !lease.safe {
+            self.on_lease(&lease, at);
+            self.last_lease_seq = Some(lease.seq);
+            return;
+        }
+        if !pres.flags.contains(Flags::RD) || self.last_lease_seq == Some(lease.seq) {
+            return;
+        }
+        self.last_lease_seq = Some(lease.seq);
+        self.on_lease(&lease, at);
+    }
+
     /// Handles one received frame (received at `at`).
     pub(crate) fn handle_at(&mut self, frame: &EplFrame, at: Instant) {
-        if let Message::Asnd(asnd) = &frame.message {
-            if let Some(lease) = SafetyLease::from_asnd(asnd) {
-                self.on_lease(&lease, at);
+        match (&frame.message, self.safety_node) {
+            (Message::Asnd(asnd), safety_node) => {
+                if let Some(lease) = SafetyLease::from_asnd(asnd) {
+                    if safety_node.is_none() && frame.src_node == LEASE_ASND_NODE_ID {
+                        self.on_lease(&lease, at);
+                    } else {
+                        tracing::debug!(node = self.node, from = frame.src_node, "lease ASnd ignored");
+                    }
+                    return;
+                }
+            }
+            (Message::PRes(pres), Some(safety)) if frame.src_node == safety => {
+                self.on_safety_pres(pres, at);
                 return;
             }
+            _ => {}
         }
         self.handle(frame, at);
     }

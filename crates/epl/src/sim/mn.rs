@@ -93,6 +93,9 @@ pub(crate) struct MnShared {
 #[derive(Debug)]
 struct CnSlot {
     node: u8,
+    /// A drive of the segment (set-point in its PReq, actual values to the program), or a
+    /// node polled with an empty PReq ([`super::SegmentBuilder::polled_node`]).
+    drive: bool,
     mac: Option<MacAddr>,
     state: NmtState,
     /// The last NMT command queued for the CN, and the cycle it was queued in.
@@ -131,9 +134,19 @@ impl Mn {
         clock: SharedClock,
         config: MnConfig,
         nodes: &[(u8, i32)],
+        polled: &[u8],
         program: Option<Box<dyn MotionProgram>>,
         shared: Arc<MnShared>,
     ) -> Self {
+        let slot = |node: u8, drive: bool| CnSlot {
+            node,
+            drive,
+            mac: None,
+            state: NmtState::NotActive,
+            last_command: None,
+            missed: 0,
+            lost: false,
+        };
         Self {
             mac: link.mac(),
             link,
@@ -141,14 +154,8 @@ impl Mn {
             config,
             cns: nodes
                 .iter()
-                .map(|&(node, _)| CnSlot {
-                    node,
-                    mac: None,
-                    state: NmtState::NotActive,
-                    last_command: None,
-                    missed: 0,
-                    lost: false,
-                })
+                .map(|&(node, _)| slot(node, true))
+                .chain(polled.iter().map(|&node| slot(node, false)))
                 .collect(),
             state: NmtState::PreOperational1,
             program,
@@ -363,7 +370,7 @@ impl Mn {
         let quick_stop = self.shared.quick_stop.load(Ordering::Relaxed);
         for i in 0..self.cns.len() {
             let Some(cn) = self.cns.get(i) else { continue };
-            let (node, Some(mac)) = (cn.node, cn.mac) else { continue };
+            let (node, drive, Some(mac)) = (cn.node, cn.drive, cn.mac) else { continue };
             let mut control = if operational { CONTROL_ENABLE } else { 0 };
             if quick_stop {
                 control |= CONTROL_QUICK_STOP;
@@ -371,19 +378,19 @@ impl Mn {
             let sp = SetPoint { control, target: self.targets.get(i).copied().unwrap_or(0) };
             let preq = PReq {
                 flags: if operational { Flags::RD } else { Flags::empty() },
-                payload: sp.encode().to_vec(),
+                payload: if drive { sp.encode().to_vec() } else { Vec::new() },
                 ..PReq::default()
             };
             let sent = self.clock.now();
             self.send(mac, node, Message::PReq(preq));
-            self.wait_pres(i, node, sent, operational);
+            self.wait_pres(i, node, sent, operational, drive);
         }
         self.async_phase(next_deadline);
         self.boot_step(deadline);
         self.cycle_index += 1;
     }
 
-    fn wait_pres(&mut self, index: usize, node: u8, sent: Instant, operational: bool) {
+    fn wait_pres(&mut self, index: usize, node: u8, sent: Instant, operational: bool, drive: bool) {
         let until = sent + self.config.pres_timeout;
         loop {
             match self.recv_until(until) {
@@ -396,8 +403,8 @@ impl Mn {
                             if operational {
                                 let rtt = at.saturating_duration_since(sent).as_nanos();
                                 self.stats().pres_rtt_ns.push(u64::try_from(rtt).unwrap_or(u64::MAX));
-                                if let (Some(p), Some(a)) =
-                                    (self.program.as_mut(), super::pdo::Actual::decode(&pres.payload))
+                                if let (true, Some(p), Some(a)) =
+                                    (drive, self.program.as_mut(), super::pdo::Actual::decode(&pres.payload))
                                 {
                                     p.actual(index, &a);
                                 }

@@ -77,6 +77,7 @@ pub enum SegmentError {
 pub struct SegmentBuilder {
     mn: Option<Arc<dyn EthLink>>,
     drives: Vec<(u8, Arc<dyn EthLink>, DriveParams)>,
+    polled: Vec<u8>,
     config: MnConfig,
     program: Option<Box<dyn MotionProgram>>,
     spin_cns: bool,
@@ -93,6 +94,16 @@ impl SegmentBuilder {
     /// Adds a drive CN with node ID `node` on `link`.
     pub fn drive(mut self, node: u8, link: Arc<dyn EthLink>, params: DriveParams) -> Self {
         self.drives.push((node, link, params));
+        self
+    }
+
+    /// Adds a CN that the MN boots and polls (after the drives, with an empty PReq) but that
+    /// the segment does not simulate: a node served elsewhere, such as the supervisor as a
+    /// safety node (`motus safety run --node`), whose PRes the drives read
+    /// ([`DriveParams::safety_node`]). The MN waits for it to be OPERATIONAL before the
+    /// program starts.
+    pub fn polled_node(mut self, node: u8) -> Self {
+        self.polled.push(node);
         self
     }
 
@@ -149,7 +160,7 @@ impl SegmentBuilder {
             return Err(SegmentError::ZeroTime("PRes time-out"));
         }
         let mut seen = Vec::new();
-        for (node, _, _) in &self.drives {
+        for node in self.drives.iter().map(|(n, _, _)| n).chain(&self.polled) {
             if *node == 0 || *node >= MN_NODE_ID || *node == BROADCAST_NODE_ID {
                 return Err(SegmentError::InvalidNode(*node));
             }
@@ -207,8 +218,15 @@ impl SegmentBuilder {
             );
         }
         let mn_shared = Arc::new(mn::MnShared::default());
-        let mn =
-            mn::Mn::new(mn_link, Arc::clone(&clock), config, &nodes, self.program, Arc::clone(&mn_shared));
+        let mn = mn::Mn::new(
+            mn_link,
+            Arc::clone(&clock),
+            config,
+            &nodes,
+            &self.polled,
+            self.program,
+            Arc::clone(&mn_shared),
+        );
         let stop_mn = Arc::clone(&stop);
         let started =
             motus_clock::spawn(&clock, std::thread::Builder::new().name("epl-mn".into()), move || {

@@ -32,7 +32,8 @@
 //!     OPERATIONAL when RD is set and the PDO version's main nibble matches 0x1400/2.
 //! * [`ControlledNodeRuntime`]: runs a [`ControlledNode`] on an [`crate::EthLink`] in a
 //!   thread of its own, promoted as a cyclic real-time thread, with PReq -> PRes turnaround
-//!   statistics.
+//!   statistics; [`serve_frame`] is how it serves one frame, for a loop that embeds a node
+//!   (the supervisor as a safety node).
 
 mod machine;
 mod runtime;
@@ -42,4 +43,4 @@ mod tests;
 pub use machine::{
     CnCounters, CnError, CnEvent, ControlledNode, StateCause, MAX_ASYNC_QUEUE, MAX_STATUS_ENTRIES, PR_GENERIC,
 };
-pub use runtime::{CnRuntimeConfig, CnRuntimeStats, ControlledNodeRuntime};
+pub use runtime::{serve_frame, CnRuntimeConfig, CnRuntimeStats, ControlledNodeRuntime, Served};

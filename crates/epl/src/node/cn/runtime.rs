@@ -26,7 +26,7 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use motus_clock::SharedClock;
+use motus_clock::{Clock, SharedClock};
 use motus_epl_protocol::NmtState;
 use motus_realtime::ThreadClass;
 
@@ -114,6 +114,45 @@ fn spin_recv(link: &dyn EthLink, buf: &mut [u8], timeout: Duration) -> io::Resul
     }
 }
 
+/// What [`serve_frame`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Served {
+    /// The frame was a PReq for the node, answered with a PRes whose `send` returned then.
+    pub pres_sent_at: Option<Instant>,
+    /// Frames that could not be sent.
+    pub send_errors: u64,
+}
+
+/// Serves one received frame `raw` with `node` on `link`, as every Motus CN does: a PReq for
+/// the node is answered first with the PRes it has prepared ([`ControlledNode::pres_for`], no
+/// decoding), then the frame is handled at `clock`'s time and whatever the node answers (ASnd
+/// in the async slot) is sent.
+pub fn serve_frame(node: &mut ControlledNode, link: &dyn EthLink, clock: &dyn Clock, raw: &[u8]) -> Served {
+    let mut served = Served::default();
+    let answered = match node.pres_for(raw) {
+        Some(pres) => {
+            match link.send(pres) {
+                Ok(()) => served.pres_sent_at = Some(clock.now()),
+                Err(e) => {
+                    served.send_errors += 1;
+                    tracing::debug!("PRes not sent: {e}");
+                }
+            }
+            true
+        }
+        None => false,
+    };
+    let now = clock.now();
+    let out = if answered { node.on_answered_preq(now, raw) } else { node.on_frame(now, raw) };
+    for frame in out {
+        if let Err(e) = link.send(&frame) {
+            served.send_errors += 1;
+            tracing::debug!("frame not sent: {e}");
+        }
+    }
+    served
+}
+
 /// The node's thread: everything the runtime shares with it.
 struct Worker {
     node: Arc<Mutex<ControlledNode>>,
@@ -159,31 +198,13 @@ impl Worker {
     }
 
     fn on_frame(&self, node: &mut ControlledNode, raw: &[u8], at: Instant) {
-        let answered = match node.pres_for(raw) {
-            Some(pres) => {
-                match self.link.send(pres) {
-                    Ok(()) => {
-                        let ns = self.clock.now().saturating_duration_since(at).as_nanos();
-                        lock(&self.shared.turnaround).push(u64::try_from(ns).unwrap_or(u64::MAX));
-                        self.shared.pres_sent.fetch_add(1, Ordering::Relaxed);
-                    }
-                    Err(e) => {
-                        self.shared.send_errors.fetch_add(1, Ordering::Relaxed);
-                        tracing::debug!("PRes not sent: {e}");
-                    }
-                }
-                true
-            }
-            None => false,
-        };
-        let now = self.clock.now();
-        let out = if answered { node.on_answered_preq(now, raw) } else { node.on_frame(now, raw) };
-        for frame in out {
-            if let Err(e) = self.link.send(&frame) {
-                self.shared.send_errors.fetch_add(1, Ordering::Relaxed);
-                tracing::debug!("frame not sent: {e}");
-            }
+        let served = serve_frame(node, &*self.link, &*self.clock, raw);
+        if let Some(sent) = served.pres_sent_at {
+            let ns = sent.saturating_duration_since(at).as_nanos();
+            lock(&self.shared.turnaround).push(u64::try_from(ns).unwrap_or(u64::MAX));
+            self.shared.pres_sent.fetch_add(1, Ordering::Relaxed);
         }
+        self.shared.send_errors.fetch_add(served.send_errors, Ordering::Relaxed);
     }
 
     fn publish(&self, node: &mut ControlledNode) {
