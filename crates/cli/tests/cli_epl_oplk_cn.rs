@@ -23,84 +23,11 @@
 
 mod common;
 
-use std::os::unix::process::CommandExt;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use common::MOTUS;
-
-/// One segment at a time: two MNs must never share a bridge, and the timing figures are for
-/// one pair on the machine.
-static SERIAL: Mutex<()> = Mutex::new(());
-
-fn oplk_dir() -> PathBuf {
-    std::env::var_os("MOTUS_OPLK_DIR").map(PathBuf::from).unwrap_or_else(|| {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/oracles/openpowerlink")
-    })
-}
-
-/// Why the test cannot run here, if it cannot.
-fn skip_reason(oplk: &Path) -> Option<String> {
-    let uid = Command::new("id")
-        .arg("-u")
-        .output()
-        .ok()
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_owned());
-    if uid.as_deref() != Some("0") {
-        return Some("needs root (network namespaces, raw sockets)".into());
-    }
-    for f in ["segment.sh", "run-node.sh", "bin/demo_mn_console", "cdc/demo_3cn_50ms.cdc"] {
-        if !oplk.join(f).exists() {
-            return Some(format!("no {} (set MOTUS_OPLK_DIR)", oplk.join(f).display()));
-        }
-    }
-    for tool in ["unshare", "ip"] {
-        if Command::new(tool).arg("-V").output().is_err() {
-            return Some(format!("no {tool}"));
-        }
-    }
-    None
-}
-
-/// What runs the MN: nothing extra by default (openPOWERLINK's demo MN puts its own threads
-/// under SCHED_RR 20), `chrt -f <prio>` with `MOTUS_OPLK_MN_FIFO=<prio>`.
-fn mn_prefix() -> String {
-    match std::env::var("MOTUS_OPLK_MN_FIFO").ok().as_deref() {
-        None | Some("off") => String::new(),
-        Some(p) => format!("chrt -f {p}"),
-    }
-}
-
-fn seconds_env(name: &str, default: u64) -> Duration {
-    Duration::from_secs(std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default))
-}
-
-/// The scenario's shell (in a private mount namespace); killed with its process group on
-/// drop.
-struct Rig {
-    shell: Child,
-    dir: tempfile::TempDir,
-}
-
-impl Drop for Rig {
-    fn drop(&mut self) {
-        let pid = self.shell.id().to_string();
-        // The shell's trap stops the nodes with SIGTERM (the CN prints its summary)...
-        let _ = Command::new("kill").args(["-TERM", &pid]).stderr(Stdio::null()).status();
-        let end = Instant::now() + Duration::from_secs(10);
-        while Instant::now() < end {
-            if let Ok(Some(_)) = self.shell.try_wait() {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        }
-        // ...and whatever is left of the group is killed.
-        let _ = Command::new("kill").args(["-KILL", "--", &format!("-{pid}")]).stderr(Stdio::null()).status();
-        let _ = self.shell.wait();
-    }
-}
+use common::oplk::{
+    is_operational, node1_error, node1_state, oplk_dir, seconds_env, skip_reason, Rig, SERIAL,
+};
 
 const SCENARIO: &str = r#"
 set -u
@@ -115,80 +42,7 @@ trap stop TERM INT
 wait
 "#;
 
-impl Rig {
-    fn start(oplk: &Path, cdc: &str, tag: &str) -> Rig {
-        let dir = tempfile::tempdir().unwrap();
-        let unique = std::process::id() % 10_000;
-        let (mnp, cnp) = (format!("m{unique}{tag}"), format!("c{unique}{tag}"));
-        let mut cn_args = "--realtime auto".to_owned();
-        if std::env::var_os("MOTUS_OPLK_CN_SPIN").is_some() {
-            cn_args.push_str(" --spin");
-        }
-        std::fs::create_dir_all("/run/netns").unwrap();
-        let shell = Command::new("unshare")
-            .args(["--mount", "--propagation", "private", "sh", "-c", SCENARIO])
-            .env("OPLK", oplk)
-            .env("W", dir.path())
-            .env("MNP", &mnp)
-            .env("CNP", &cnp)
-            .env("MOTUS", MOTUS)
-            .env("CNARGS", &cn_args)
-            .env("MNPRE", mn_prefix())
-            .env("CDC", oplk.join("cdc").join(cdc))
-            .stdin(Stdio::null())
-            .process_group(0)
-            .spawn()
-            .unwrap();
-        eprintln!("{cdc}: ports {mnp} {cnp}, logs in {}", dir.path().display());
-        Rig { shell, dir }
-    }
-
-    fn log(&self, name: &str) -> Vec<String> {
-        std::fs::read_to_string(self.dir.path().join(name))
-            .unwrap_or_default()
-            .lines()
-            .map(str::to_owned)
-            .collect()
-    }
-
-    fn tails(&self) -> String {
-        let tail = |name: &str| {
-            let l = self.log(name);
-            l[l.len().saturating_sub(30)..].join("\n")
-        };
-        format!("--- mn.log\n{}\n--- cn.log\n{}", tail("mn.log"), tail("cn.log"))
-    }
-
-    /// Fails the test when the scenario's shell has ended.
-    fn check_alive(&mut self) {
-        if let Ok(Some(status)) = self.shell.try_wait() {
-            panic!("the scenario ended early ({status}):\n{}", self.tails());
-        }
-    }
-}
-
-/// An MN log line about node 1's NMT state ("Node 1 entered state NmtCsOperational",
-/// "... Node=  1, NmtNodeEventNmtState State:NmtCsOperational"): the state named in it, in
-/// lower case.
-fn node1_state(line: &str) -> Option<String> {
-    let l = line.trim();
-    if let Some(rest) = l.strip_prefix("Node 1 entered state") {
-        return Some(rest.trim().to_lowercase());
-    }
-    let (_, rest) = l.split_once("Node=  1,")?;
-    rest.split_once("State:").map(|(_, s)| s.trim().to_lowercase())
-}
-
-/// Whether a state named by the MN's log is (CS_)OPERATIONAL.
-fn is_operational(state: &str) -> bool {
-    let s = state.replace('_', "");
-    s.ends_with("operational") && !s.contains("preoperational")
-}
-
-/// An MN log line reporting an error for node 1.
-fn node1_error(line: &str) -> bool {
-    line.contains("Node=  1,") && (line.contains("Error") || line.contains("ERROR"))
-}
+const LOGS: [&str; 2] = ["mn.log", "cn.log"];
 
 fn run(cdc: &str, tag: &str) {
     let oplk = oplk_dir();
@@ -198,62 +52,55 @@ fn run(cdc: &str, tag: &str) {
     }
     let _serial = SERIAL.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let hold = seconds_env("MOTUS_OPLK_SECONDS", 20);
-    let mut rig = Rig::start(&oplk, cdc, tag);
-    if std::env::var_os("MOTUS_OPLK_VERBOSE").is_some() {
-        eprintln!("{}", rig.tails());
+    let unique = std::process::id() % 10_000;
+    let (mnp, cnp) = (format!("m{unique}{tag}"), format!("c{unique}{tag}"));
+    let mut cn_args = "--realtime auto".to_owned();
+    if std::env::var_os("MOTUS_OPLK_CN_SPIN").is_some() {
+        cn_args.push_str(" --spin");
     }
-    // Boot: node 1 OPERATIONAL in the MN's log (liveness bound: the openPOWERLINK pair takes
-    // 2-8 s).
+    let cdc_path = oplk.join("cdc").join(cdc).to_string_lossy().into_owned();
+    let mut rig = Rig::start(
+        &oplk,
+        SCENARIO,
+        &[("MNP", mnp.clone()), ("CNP", cnp.clone()), ("CNARGS", cn_args), ("CDC", cdc_path)],
+    );
+    eprintln!("{cdc}: ports {mnp} {cnp}, logs in {}", rig.dir.path().display());
+    if std::env::var_os("MOTUS_OPLK_VERBOSE").is_some() {
+        eprintln!("{}", rig.tails(&LOGS));
+    }
     let boot = Instant::now();
-    let operational_at = loop {
-        rig.check_alive();
-        let mn = rig.log("mn.log");
-        if let Some(i) = mn.iter().position(|l| node1_state(l).is_some_and(|s| is_operational(&s))) {
-            break i;
-        }
-        assert!(
-            boot.elapsed() < Duration::from_secs(120),
-            "node 1 not OPERATIONAL within 120 s:\n{}",
-            rig.tails()
-        );
-        std::thread::sleep(Duration::from_millis(200));
-    };
+    let operational_at = rig.wait_node1_operational(&LOGS);
     eprintln!("{cdc}: node 1 OPERATIONAL after {:.1} s", boot.elapsed().as_secs_f64());
     let cn = rig.log("cn.log");
     assert!(
         cn.iter().any(|l| l.contains("SDO write 0x1006/0")),
         "the MN wrote the cycle length by SDO:\n{}",
-        rig.tails()
+        rig.tails(&LOGS)
     );
-    assert!(cn.iter().any(|l| l.contains("-> OPERATIONAL")), "{}", rig.tails());
+    assert!(cn.iter().any(|l| l.contains("-> OPERATIONAL")), "{}", rig.tails(&LOGS));
     let cn_operational = cn.iter().rposition(|l| l.contains("-> OPERATIONAL")).unwrap();
     // Hold.
     let end = Instant::now() + hold;
     while Instant::now() < end {
-        rig.check_alive();
+        rig.check_alive(&LOGS);
         std::thread::sleep(Duration::from_millis(500));
         let mn = rig.log("mn.log");
         let later = mn.get(operational_at + 1..).unwrap_or_default();
         if let Some(l) = later.iter().find(|l| node1_error(l)) {
-            panic!("the MN reported an error for node 1: {l}\n{}", rig.tails());
+            panic!("the MN reported an error for node 1: {l}\n{}", rig.tails(&LOGS));
         }
         if let Some(l) = later.iter().find(|l| node1_state(l).is_some_and(|s| !is_operational(&s))) {
-            panic!("node 1 left OPERATIONAL (reset?): {l}\n{}", rig.tails());
+            panic!("node 1 left OPERATIONAL (reset?): {l}\n{}", rig.tails(&LOGS));
         }
         let cn = rig.log("cn.log");
         if let Some(l) =
             cn.get(cn_operational + 1..).unwrap_or_default().iter().find(|l| l.contains(": state "))
         {
-            panic!("the Motus CN left OPERATIONAL: {l}\n{}", rig.tails());
+            panic!("the Motus CN left OPERATIONAL: {l}\n{}", rig.tails(&LOGS));
         }
     }
     // Stop: the CN prints its turnaround.
-    let shell_pid = rig.shell.id().to_string();
-    let _ = Command::new("kill").args(["-TERM", &shell_pid]).stderr(Stdio::null()).status();
-    let stopped = Instant::now();
-    while rig.shell.try_wait().ok().flatten().is_none() && stopped.elapsed() < Duration::from_secs(15) {
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    rig.stop();
     let cn = rig.log("cn.log");
     let turnaround = cn.iter().find(|l| l.contains("turnaround")).cloned();
     let summary = cn.iter().find(|l| l.contains("summary")).cloned();
@@ -264,10 +111,10 @@ fn run(cdc: &str, tag: &str) {
     );
     eprintln!("{cdc}: {}", summary.as_deref().unwrap_or("no summary"));
     if std::env::var_os("MOTUS_OPLK_VERBOSE").is_some() {
-        eprintln!("{}", rig.tails());
+        eprintln!("{}", rig.tails(&LOGS));
     }
-    assert!(turnaround.is_some(), "the CN printed no turnaround:\n{}", rig.tails());
-    assert!(summary.is_some_and(|s| s.contains("cycle errors 0")), "{}", rig.tails());
+    assert!(turnaround.is_some(), "the CN printed no turnaround:\n{}", rig.tails(&LOGS));
+    assert!(summary.is_some_and(|s| s.contains("cycle errors 0")), "{}", rig.tails(&LOGS));
 }
 
 #[test]

@@ -8,7 +8,7 @@ mod common;
 
 use common::*;
 use motus_kv01::ArmConfig;
-use motus_kv01_sim::{lock, LineOptions};
+use motus_kv01_sim::{lock, ArmConfig as SimArmConfig, LineOptions};
 use motus_serial::{BusConfig, FaultConfig};
 use std::time::{Duration, Instant};
 
@@ -28,7 +28,12 @@ fn a_joint_moves_over_a_pty() {
 #[test]
 fn moves_complete_with_faults_injected_over_a_pty() {
     let faults = FaultConfig { drop_rate: 0.01, corrupt_rate: 0.01, seed: 11 };
-    let sim = PtySim::start(LineOptions { faults, ..LineOptions::default() }.seeded(11));
+    // A liveness margin: the modules' communication watchdog (700 ms) would latch a joint when
+    // a loaded host delays the controller's commands beyond it (the watchdog itself is
+    // checked in `motus-kv01-sim`'s `tests/safety.rs`).
+    let mut arm = SimArmConfig::default();
+    arm.cm.safety_timeout_ms = 3000.0;
+    let sim = PtySim::start(LineOptions { faults, arm, ..LineOptions::default() }.seeded(11));
     let arm = sim.open(ArmConfig::default(), BusConfig { margin: Duration::from_millis(100), retries: 3 });
     arm.power_up(1).unwrap();
     for target in [5.0, -5.0] {

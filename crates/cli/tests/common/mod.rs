@@ -2,6 +2,8 @@
 //! says so on stderr (a stale pty link left by a killed simulator does not count).
 #![allow(dead_code, clippy::panic, clippy::unwrap_used, clippy::expect_used)]
 
+pub mod oplk;
+
 use std::io::{BufRead, Read, Write};
 use std::process::{Child, Command, Stdio};
 
