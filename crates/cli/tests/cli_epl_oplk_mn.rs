@@ -317,6 +317,20 @@ fn motus_mn_boots_configures_and_reboots_the_openpowerlink_cn() {
     eprintln!("{}", summary.join("\n"));
     assert!(status.success(), "motus epl mn: {status}\n{}", mn_log.tail(40));
     assert!(summary.iter().any(|l| l.contains("SoC jitter")), "{}", mn_log.tail(40));
+    // The MN's timing, a real-time figure for scripts/realtime.sh (target: SoC jitter p99
+    // below 100 us with real-time scheduling).
+    if let Some(line) = summary.iter().find(|l| l.contains("SoC jitter")) {
+        let jitter = line.split_once("SoC jitter").map_or("", |(_, rest)| rest);
+        let turnaround = line.split_once("PReq->PRes").map_or("", |(_, rest)| rest);
+        let mut figures = Vec::new();
+        if let Some(v) = common::oplk::percentile_us(jitter, "p99") {
+            figures.push(("suite.oplk_mn_1ms.jitter.p99".to_owned(), v, "us"));
+        }
+        if let Some(v) = common::oplk::percentile_us(turnaround, "p99") {
+            figures.push(("suite.oplk_mn_1ms.pres.p99".to_owned(), v, "us"));
+        }
+        common::oplk::write_figures("oplk_mn_1ms", &figures);
+    }
 }
 
 fn nix_is_root() -> bool {

@@ -185,3 +185,25 @@ pub fn is_operational(state: &str) -> bool {
 pub fn node1_error(line: &str) -> bool {
     line.contains("Node=  1,") && (line.contains("Error") || line.contains("ERROR"))
 }
+
+/// The value of percentile `p` ("p50", "p99") in a summary line such as "turnaround PReq ->
+/// PRes p50 16.1 us p99 26.5 us max 206.8 us" or "SoC jitter p50 0.1 us p99 1.0 us".
+pub fn percentile_us(line: &str, p: &str) -> Option<f64> {
+    let mut words = line.split_whitespace();
+    words.find(|w| *w == p)?;
+    words.next()?.parse().ok()
+}
+
+/// Writes `REALTIME <name> <value> <unit>` lines to `target/realtime/from-suite/<file>.log`,
+/// which `scripts/realtime.sh` puts in its table (a real-time figure of the suite, printed
+/// and reported, not asserted).
+pub fn write_figures(file: &str, figures: &[(String, f64, &str)]) {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/realtime/from-suite");
+    let text: String = figures.iter().map(|(k, v, u)| format!("REALTIME {k} {v} {u}\n")).collect();
+    eprint!("{text}");
+    if let Err(e) =
+        std::fs::create_dir_all(&dir).and_then(|()| std::fs::write(dir.join(format!("{file}.log")), text))
+    {
+        eprintln!("cannot write the figures to {}: {e}", dir.display());
+    }
+}
