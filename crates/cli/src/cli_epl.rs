@@ -50,6 +50,12 @@ pub struct EplCnArgs {
     /// cycle, which makes that MN fail at a 1 ms cycle; openPOWERLINK's own CN takes 0.5-0.8 s.
     #[arg(long, default_value_t = 1000)]
     pub reset_ms: u64,
+    /// The object dictionary from a POWERLINK device description (XDD, or an XDC whose
+    /// actualValue attributes are the configured values) instead of the built-in one
+    /// (openPOWERLINK's demo CN); its identity objects are the node's, and the node ID goes
+    /// into 0x1F93/1 when the file has it.
+    #[arg(long, value_name = "FILE")]
+    pub od: Option<PathBuf>,
 }
 
 /// Options of `motus epl mn`.
@@ -114,9 +120,22 @@ pub struct EplMonitorArgs {
     /// printed; every line carries the cumulative counters).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
     pub every: u64,
-    /// Receive queue asked for the raw socket, in bytes (SO_RCVBUFFORCE when permitted, else
-    /// SO_RCVBUF up to net.core.rmem_max); a larger queue drops fewer frames when the monitor
-    /// falls behind.
+    /// Size of the TPACKET_V3 receive ring on an interface, in MiB (blocks of 32 KiB, handed
+    /// over when full or 4 ms after their first frame): 64 MiB hold about 460,000 small frames.
+    #[arg(
+        long,
+        default_value_t = 64,
+        value_parser = clap::value_parser!(u32).range(1..=4095),
+        conflicts_with = "no_ring"
+    )]
+    pub ring_mb: u32,
+    /// Read the interface with a plain raw socket (one receive call per frame, queue of
+    /// `--rcvbuf` bytes) instead of the TPACKET_V3 ring.
+    #[arg(long)]
+    pub no_ring: bool,
+    /// With `--no-ring`: receive queue asked for the raw socket, in bytes (SO_RCVBUFFORCE when
+    /// permitted, else SO_RCVBUF up to net.core.rmem_max); a larger queue drops fewer frames
+    /// when the monitor falls behind.
     #[arg(long, default_value_t = 4 << 20)]
     pub rcvbuf: usize,
 }

@@ -18,7 +18,8 @@
 //! * [`ValueMap`]: per-node process values at PRes payload offsets (TOML `--map` files).
 //! * [`ObjectDictionary`] ([`od`]): an object dictionary serving [`ObjectAccess`], with the
 //!   built-in CN dictionary ([`ObjectDictionary::controlled_node`]) and the PDO mappings that
-//!   build the PRes payload and take the PReq payload.
+//!   build the PRes payload and take the PReq payload, or a dictionary read from a POWERLINK
+//!   device description ([`ObjectDictionary::from_xdd`], XDD/XDC).
 //! * [`Cdc`] ([`cdc`]): the concise DCF (`.cdc`) an MN reads, with each CN's configuration.
 //! * [`SdoServer`] / [`SdoClient`] ([`sdo_transfer`]): SDO over ASnd transfer engines (the
 //!   sequence layer and the command layer), with time as an input.
@@ -72,7 +73,7 @@ pub use frame::{EplFrame, Message, Padding};
 pub use ident::{FixedText, IdentResponse};
 pub use lease::{SafetyLease, LEASE_ASND_NODE_ID, SAFETY_LEASE_SERVICE_ID};
 pub use object_access::{ObjectAccess, SdoAbortCode};
-pub use od::{DeviceIdentity, ObjectDictionary, PdoMapping, SafetyNodeTiming, SAFETY_LEASE_OBJECT};
+pub use od::{DeviceIdentity, ObjectDictionary, PdoMapping, SafetyNodeTiming, XddError, SAFETY_LEASE_OBJECT};
 pub use preq::PReq;
 pub use pres::PRes;
 pub use sdo::{SdoCommand, SdoFrame};

@@ -3,9 +3,10 @@
 //!
 //! * [`transport`]: the [`EthLink`] trait (one Ethernet port: send a frame, receive a frame
 //!   with a time-out) and its implementations: [`RawSocket`] (AF_PACKET on a Linux interface,
-//!   needs CAP_NET_RAW), [`UdpLink`] (Ethernet frames carried in UDP datagrams on 127.0.0.1,
-//!   unprivileged), and the decorators [`PcapLink`] (records a pcap file) and [`FaultyLink`]
-//!   (drops, delays and corrupts frames with a seeded generator).
+//!   needs CAP_NET_RAW) and [`RingSocket`] (the same, received through a TPACKET_V3 ring),
+//!   [`UdpLink`] (Ethernet frames carried in UDP datagrams on 127.0.0.1, unprivileged), and the
+//!   decorators [`PcapLink`] (records a pcap file) and [`FaultyLink`] (drops, delays and
+//!   corrupts frames with a seeded generator).
 //! * [`sim`]: a simulated segment: a Managing Node running the cycle (boot-up, SoC, PReq,
 //!   PRes time-outs, SoA, NMT commands) and Controlled Nodes that behave like servo drives,
 //!   driven by a [`sim::MotionProgram`].
@@ -26,6 +27,6 @@ pub mod transport;
 
 pub use monitor::{CycleSample, Monitor, MonitorConfig, MonitorStats, NodeCounters, NodeSample, TimingStats};
 pub use transport::{
-    open_link, EthLink, FaultConfig, FaultCounters, FaultyLink, KernelRxStats, PcapLink, RawSocket, UdpHub,
-    UdpLink,
+    open_link, EthLink, FaultConfig, FaultCounters, FaultyLink, KernelRxStats, PcapLink, RawSocket,
+    RingConfig, RingSocket, UdpHub, UdpLink,
 };

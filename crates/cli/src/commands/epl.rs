@@ -9,7 +9,7 @@ use anyhow::{bail, Context, Result};
 use motus_epl::sim::{MnConfig, MotionProgram, Segment, SetpointList};
 use motus_epl::{
     open_link, CycleSample, EthLink, Monitor, MonitorConfig, MonitorStats, NodeCounters, PcapLink, RawSocket,
-    TimingStats,
+    RingConfig, RingSocket, TimingStats,
 };
 use motus_epl_protocol::ValueMap;
 use motus_safety::RuleSet;
@@ -182,10 +182,23 @@ fn summary_text(st: &MonitorStats, nodes: &[NodeCounters]) -> String {
     out
 }
 
-/// Opens the monitor's link: a raw interface with the asked receive queue, or a named segment.
-fn open_monitor_link(name: &str, rcvbuf: usize) -> Result<Arc<dyn EthLink>> {
+/// Opens the monitor's link: a raw interface read through a TPACKET_V3 ring of `ring_mb` MiB
+/// (`None`: a plain raw socket with the asked receive queue), or a named segment.
+fn open_monitor_link(name: &str, ring_mb: Option<u32>, rcvbuf: usize) -> Result<Arc<dyn EthLink>> {
     if name.starts_with("udp://") || name.starts_with("mem://") {
         return open_link(name, true).with_context(|| format!("cannot open {name}"));
+    }
+    if let Some(mb) = ring_mb {
+        let config = RingConfig::with_mib(mb);
+        let ring = RingSocket::open(name, true, config).with_context(|| format!("cannot open {name}"))?;
+        eprintln!(
+            "receive ring: {} MiB, {} blocks of {} KiB handed over after at most {} ms",
+            config.bytes() >> 20,
+            config.blocks,
+            config.block_size >> 10,
+            config.block_timeout_ms
+        );
+        return Ok(Arc::new(ring));
     }
     let raw = RawSocket::open(name, true).with_context(|| format!("cannot open {name}"))?;
     let granted =
@@ -223,7 +236,7 @@ fn monitor(a: EplMonitorArgs) -> Result<()> {
         monitor.replay(&frames, print)
     } else {
         let name = a.interface.as_deref().unwrap_or_default();
-        let link = open_monitor_link(name, a.rcvbuf)?;
+        let link = open_monitor_link(name, (!a.no_ring).then_some(a.ring_mb), a.rcvbuf)?;
         eprintln!("monitoring {}; Ctrl-C to stop", link.describe());
         let stop = super::stop_flag()?;
         monitor.run(&*link, &stop, &mut print)?

@@ -1,9 +1,10 @@
 //! `motus epl cn`: a standards-based Controlled Node for a foreign Managing Node.
 
+use std::path::Path;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use motus_clock::SystemClock;
 use motus_epl::node::cn::{CnEvent, CnRuntimeConfig, CnRuntimeStats, ControlledNode, ControlledNodeRuntime};
 use motus_epl::open_link;
@@ -64,6 +65,23 @@ fn print_summary(node: u8, s: &CnRuntimeStats) {
     );
 }
 
+/// NMT_EPLNodeID_REC: subindex 1 is the node ID.
+const NODE_ID_OBJECT: u16 = 0x1F93;
+
+/// The dictionary a device description (`--od`) gives, with node ID `node` in 0x1F93/1 as its
+/// default (so the NMT resets keep it) when the description has that entry.
+fn dictionary_from_file(path: &Path, node: u8) -> Result<ObjectDictionary> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut od = ObjectDictionary::from_xdd(&text)
+        .with_context(|| format!("{}: not a usable POWERLINK device description", path.display()))?;
+    if od.entry(NODE_ID_OBJECT, 1).is_some() {
+        od.set_default(NODE_ID_OBJECT, 1, &[node]).map_err(|e| {
+            anyhow!("{}: 0x1F93/1 (NodeID_U8) cannot hold node ID {node}: {e:?}", path.display())
+        })?;
+    }
+    Ok(od)
+}
+
 /// Runs `motus epl cn`.
 pub fn run(a: EplCnArgs) -> Result<()> {
     if let Some(s) = a.seconds {
@@ -71,13 +89,26 @@ pub fn run(a: EplCnArgs) -> Result<()> {
             bail!("--seconds must be a positive number, got {s}");
         }
     }
+    // Read before anything else happens, so that a bad file stops at once.
+    let from_file = match a.od.as_deref() {
+        Some(path) => Some((path, dictionary_from_file(path, a.node)?)),
+        None => None,
+    };
     let obtained = motus_realtime::set_policy(a.realtime.into());
     let memory = motus_realtime::lock_memory();
     eprintln!("real-time: {obtained}; {memory}");
     let link = open_link(&a.interface, false).with_context(|| format!("cannot open {}", a.interface))?;
     let clock = SystemClock::shared();
-    let identity = DeviceIdentity { mac_address: link.mac().0, ..DeviceIdentity::default() };
-    let od = ObjectDictionary::controlled_node(a.node, &identity);
+    let od = match from_file {
+        Some((path, od)) => {
+            eprintln!("object dictionary: {} ({} objects)", path.display(), od.len());
+            od
+        }
+        None => {
+            let identity = DeviceIdentity { mac_address: link.mac().0, ..DeviceIdentity::default() };
+            ObjectDictionary::controlled_node(a.node, &identity)
+        }
+    };
     let mut node = ControlledNode::new(a.node, link.mac(), od, clock.now())?;
     node.set_reset_time(Duration::from_millis(a.reset_ms));
     eprintln!(

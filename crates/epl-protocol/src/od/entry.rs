@@ -182,7 +182,10 @@ pub struct Entry {
 }
 
 impl Entry {
-    fn fixed(
+    /// An entry holding `value` (little-endian bytes) with no limits and no PDO mapping; for a
+    /// string or domain, the value's length is the capacity. The caller makes the value suit
+    /// the type (the typed builders, the device-description reader).
+    pub(super) fn fixed(
         name: impl Into<Cow<'static, str>>,
         data_type: DataType,
         access: Access,
@@ -448,6 +451,16 @@ impl Object {
         let count = count.min(254);
         let entries: BTreeMap<u8, Entry> = (1..=count).map(|sub| (sub, element.clone())).collect();
         Object::with_entries(name.into(), ObjectKind::Array, entries)
+    }
+
+    /// An object of `kind` with exactly these entries, subindex 0 included (as a device
+    /// description lists them).
+    pub(super) fn from_entries(
+        name: impl Into<Cow<'static, str>>,
+        kind: ObjectKind,
+        entries: BTreeMap<u8, Entry>,
+    ) -> Self {
+        Object { name: name.into(), kind, entries }
     }
 
     fn with_entries(name: Cow<'static, str>, kind: ObjectKind, mut entries: BTreeMap<u8, Entry>) -> Self {

@@ -13,6 +13,8 @@
 //! * [`ObjectDictionary::safety_node`] (`safety_node.rs`) adds to it the safety lease object
 //!   of a supervisor that is a CN (0x2100), mapped into its PRes by default.
 //! * `mapping.rs`: the 64-bit mapping entries and the typed [`PdoMapping`].
+//! * [`ObjectDictionary::from_xdd`] (`xdd.rs`) reads the dictionary from a POWERLINK device
+//!   description (XDD, or an XDC with configured `actualValue`s) instead.
 //!
 //! A PDO mapping is checked whenever it could change: a write that would leave an enabled
 //! mapping invalid (object missing or not mappable, layout, overlap, payload limit) is
@@ -24,6 +26,7 @@ mod cn_profile;
 mod entry;
 mod mapping;
 mod safety_node;
+mod xdd;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::RangeInclusive;
@@ -35,6 +38,7 @@ pub use mapping::{
     RPDO_COMM_BASE, RPDO_MAPPING_BASE, TPDO_COMM_BASE, TPDO_MAPPING_BASE,
 };
 pub use safety_node::{SafetyNodeTiming, SAFETY_LEASE_OBJECT};
+pub use xdd::{XddError, XddLocation};
 
 use crate::object_access::{ObjectAccess, SdoAbortCode};
 

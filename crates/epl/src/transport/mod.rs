@@ -21,7 +21,7 @@ use motus_epl_protocol::MacAddr;
 pub use faulty::{FaultConfig, FaultCounters, FaultyLink};
 pub use mem::{MemHub, MemLink, MEM_QUEUE_FRAMES};
 pub use pcap::PcapLink;
-pub use raw::RawSocket;
+pub use raw::{RawSocket, RingConfig, RingSocket};
 pub use udp::{UdpHub, UdpLink};
 
 /// Largest frame a link passes (1514 bytes without FCS, plus room for a VLAN tag).
