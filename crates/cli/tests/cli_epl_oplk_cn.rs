@@ -1,6 +1,7 @@
 //! Interop: openPOWERLINK's Managing Node (`bin/demo_mn_console`, with its demo concise DCF
 //! `demo_3cn_50ms.cdc` and then `demo_3cn_1ms.cdc`) boots `motus epl cn --node 1`,
-//! configures it by SDO and keeps it OPERATIONAL (issue 20, acceptance 1 and 5).
+//! configures it by SDO and keeps it OPERATIONAL (issue 20, acceptance 1 and 5), also with
+//! the CN's dictionary read from openPOWERLINK's XDD (`--od`).
 //!
 //! Needs root and the openPOWERLINK directory (`MOTUS_OPLK_DIR`, default
 //! `<workspace>/../shared/oracles/openpowerlink`); skipped with a printed reason otherwise.
@@ -62,6 +63,11 @@ enum Hold {
 }
 
 fn run(cdc: &str, tag: &str, policy: Hold) {
+    run_with(cdc, tag, policy, "");
+}
+
+/// [`run`] with more arguments for `motus epl cn`.
+fn run_with(cdc: &str, tag: &str, policy: Hold, extra_cn_args: &str) {
     let oplk = oplk_dir();
     if let Some(why) = skip_reason(&oplk) {
         eprintln!("skipped: {why}");
@@ -71,7 +77,7 @@ fn run(cdc: &str, tag: &str, policy: Hold) {
     let hold = seconds_env("MOTUS_OPLK_SECONDS", 20);
     let unique = std::process::id() % 10_000;
     let (mnp, cnp) = (format!("m{unique}{tag}"), format!("c{unique}{tag}"));
-    let mut cn_args = "--realtime auto".to_owned();
+    let mut cn_args = format!("--realtime auto {extra_cn_args}");
     if std::env::var_os("MOTUS_OPLK_CN_SPIN").is_some() {
         cn_args.push_str(" --spin");
     }
@@ -176,6 +182,15 @@ fn run(cdc: &str, tag: &str, policy: Hold) {
 #[test]
 fn openpowerlink_mn_keeps_motus_cn_operational_50ms() {
     run("demo_3cn_50ms.cdc", "a", Hold::Strict);
+}
+
+/// The CN's dictionary read from openPOWERLINK's own device description (`--od`): the MN
+/// configures and holds it as the built-in one.
+#[test]
+fn openpowerlink_mn_keeps_a_motus_cn_from_its_xdd_operational_50ms() {
+    let xdd = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../epl-protocol/tests/data/00000000_POWERLINK_CiA401_CN.xdd");
+    run_with("demo_3cn_50ms.cdc", "x", Hold::Strict, &format!("--od {}", xdd.display()));
 }
 
 #[test]
