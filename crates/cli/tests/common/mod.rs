@@ -52,7 +52,9 @@ pub fn http(
     body: &str,
 ) -> (u16, String, String) {
     let mut s = std::net::TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(std::time::Duration::from_secs(20))).unwrap();
+    // A liveness bound: the station's web threads run at nice +10, so beside CPU hogs a login
+    // (an Argon2 hash) may take many seconds.
+    s.set_read_timeout(Some(std::time::Duration::from_secs(60))).unwrap();
     let mut req = format!(
         "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Length: {}\r\n",
         body.len()
