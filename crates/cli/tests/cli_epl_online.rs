@@ -28,17 +28,6 @@ fn free_segment() -> u16 {
     panic!("no free block of 16 UDP ports");
 }
 
-/// The juggler's rules for a 1 ms cycle (the UDP link on a shared machine).
-fn rules_1ms(dir: &Path) -> PathBuf {
-    let text = std::fs::read_to_string(root().join("crates/safety/examples/juggler.toml")).unwrap();
-    let text = text
-        .replace("cycle_time = 0.0004", "cycle_time = 0.001")
-        .replace("lease_time = 0.0008", "lease_time = 0.005");
-    let p = dir.join("juggler.toml");
-    std::fs::write(&p, text).unwrap();
-    p
-}
-
 /// A running process whose stdout lines arrive on a channel.
 struct Lines {
     child: Child,
@@ -127,7 +116,7 @@ fn safety_run(rules: &Path, drives: Option<&Path>, seg: &str, approval: &Path, k
 #[test]
 fn online_supervisor_stops_a_student_program_and_blocks_on_an_unapproved_change() {
     let dir = tempfile::tempdir().unwrap();
-    let rules = rules_1ms(dir.path());
+    let rules = common::juggler_rules_1ms(dir.path());
     let key = dir.path().join("admin.key");
     std::fs::write(&key, "a-secret-administrator-key-0123456789\n").unwrap();
     let approval = dir.path().join("juggler.approved");
@@ -208,7 +197,7 @@ fn online_supervisor_stops_a_student_program_and_blocks_on_an_unapproved_change(
 #[test]
 fn safety_run_watches_the_approved_drive_parameters() {
     let dir = tempfile::tempdir().unwrap();
-    let rules = rules_1ms(dir.path());
+    let rules = common::juggler_rules_1ms(dir.path());
     let drives = dir.path().join("juggler-drives.toml");
     let shipped = std::fs::read_to_string(root().join("crates/safety/examples/juggler-drives.toml")).unwrap();
     std::fs::write(&drives, &shipped).unwrap();

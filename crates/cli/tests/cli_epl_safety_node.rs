@@ -19,7 +19,7 @@ mod common;
 use common::MOTUS;
 use motus_epl::netns::{is_root, BridgedPorts};
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
@@ -27,21 +27,6 @@ use std::time::{Duration, Instant};
 const SAFETY_NODE: &str = "100";
 /// Status word bit of the simulated drives: stopped by the safety lease.
 const STATUS_LEASE_STOP: u64 = 0x0008;
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// The juggler's rules for a 1 ms cycle.
-fn rules_1ms(dir: &Path) -> PathBuf {
-    let text = std::fs::read_to_string(root().join("crates/safety/examples/juggler.toml")).unwrap();
-    let text = text
-        .replace("cycle_time = 0.0004", "cycle_time = 0.001")
-        .replace("lease_time = 0.0008", "lease_time = 0.005");
-    let p = dir.join("juggler.toml");
-    std::fs::write(&p, text).unwrap();
-    p
-}
 
 /// A `motus` process in the ports' namespace whose stdout and stderr lines arrive on a channel.
 struct Proc {
@@ -139,7 +124,7 @@ fn the_supervisor_as_a_safety_node_stops_an_unsafe_program_and_its_death_stops_t
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let rules = rules_1ms(dir.path());
+    let rules = common::juggler_rules_1ms(dir.path());
     let rules_path = rules.to_str().unwrap();
     let map = dir.path().join("map.toml");
     let mut text = String::new();

@@ -24,9 +24,6 @@ use std::time::{Duration, Instant};
 use motus_epl::netns::BridgedPorts;
 use motus_epl::sim::MnConfig;
 use motus_epl::{EthLink, Monitor, MonitorConfig, RawSocket};
-use motus_epl_protocol::{
-    EplFrame, Flags, MacAddr, Message, NmtState, PReq, PRes, PrRs, RequestedService, Soa, Soc,
-};
 
 fn require_root() {
     assert!(
@@ -80,32 +77,6 @@ fn open_raw(ns: &BridgedPorts, port: &str) -> RawSocket {
     .unwrap()
 }
 
-/// Cycle `k` of a 1 ms segment with one CN: SoC (RelativeTime k ms), PReq, PRes, SoA.
-fn cycle_frames(k: u64) -> Vec<Vec<u8>> {
-    let mn = MacAddr([2, 0, 0, 0, 0, 240]);
-    let cn = MacAddr([2, 0, 0, 0, 0, 1]);
-    let soc = Soc { relative_time: 1000 * k, ..Soc::default() };
-    let preq = PReq { flags: Flags::RD, payload: vec![0; 4], ..PReq::default() };
-    let pres = PRes {
-        nmt_state: NmtState::Operational,
-        flags: Flags::RD,
-        pr_rs: PrRs::default(),
-        pdo_version: 0,
-        payload: vec![1, 2, 3, 4],
-        reserved: 0,
-    };
-    let soa = Soa::new(NmtState::Operational, RequestedService::NoService, 0);
-    [
-        EplFrame::new(mn, MacAddr::SOC, 255, 240, Message::Soc(soc)),
-        EplFrame::new(mn, cn, 1, 240, Message::PReq(preq)),
-        EplFrame::new(cn, MacAddr::PRES, 255, 1, Message::PRes(pres)),
-        EplFrame::new(mn, MacAddr::SOA, 255, 240, Message::Soa(soa)),
-    ]
-    .iter()
-    .map(|f| f.encode().unwrap())
-    .collect()
-}
-
 fn send_all(link: &dyn EthLink, frames: &[Vec<u8>]) {
     for f in frames {
         loop {
@@ -133,13 +104,13 @@ fn veth_monitor_accounts_for_every_frame() {
     let mon = Arc::new(open_raw(&ns, "mon"));
     let small = mon.set_recv_buffer(16 << 10).unwrap();
     // Phase 1: 150 cycles in a burst; the monitor does not read yet.
-    let burst: Vec<Vec<u8>> = (0..150).flat_map(cycle_frames).collect();
+    let burst: Vec<Vec<u8>> = (0..150).flat_map(common::cycle_frames).collect();
     send_all(&*tx, &burst);
     std::thread::sleep(Duration::from_millis(300));
     let large = mon.set_recv_buffer(4 << 20).unwrap();
     // Phase 2: the monitor reads while 150 more cycles come at about 1 ms, then a last SoC.
-    let mut paced: Vec<Vec<Vec<u8>>> = (150..300).map(cycle_frames).collect();
-    paced.push(cycle_frames(300).into_iter().take(1).collect());
+    let mut paced: Vec<Vec<Vec<u8>>> = (150..300).map(common::cycle_frames).collect();
+    paced.push(common::cycle_frames(300).into_iter().take(1).collect());
     let sent = (burst.len() + paced.iter().map(Vec::len).sum::<usize>()) as u64;
     let stop = Arc::new(AtomicBool::new(false));
     let monitor = {

@@ -14,6 +14,8 @@
 //! compared with timing figures.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
+mod common;
+
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
@@ -21,9 +23,7 @@ use std::time::{Duration, Instant};
 
 use motus_epl::netns::{is_root, BridgedPorts};
 use motus_epl::{EthLink, Monitor, MonitorConfig, RingConfig, RingSocket};
-use motus_epl_protocol::{
-    EplFrame, Flags, MacAddr, Message, NmtState, PReq, PRes, PrRs, RequestedService, Soa, Soc,
-};
+use motus_epl_protocol::{EplFrame, Flags, MacAddr, Message, NmtState, PRes, PrRs, Soc};
 
 /// One test at a time: they send bursts that would disturb each other on two cores.
 fn exclusive() -> MutexGuard<'static, ()> {
@@ -262,30 +262,6 @@ fn ring_places_drops_where_frames_are_missing() {
     drop(ns);
 }
 
-/// Cycle `k` of a 1 ms segment with one CN: SoC (RelativeTime k ms), PReq, PRes, SoA.
-fn cycle_frames(k: u64) -> Vec<Vec<u8>> {
-    let soc = Soc { relative_time: 1000 * k, ..Soc::default() };
-    let preq = PReq { flags: Flags::RD, payload: vec![0; 4], ..PReq::default() };
-    let pres = PRes {
-        nmt_state: NmtState::Operational,
-        flags: Flags::RD,
-        pr_rs: PrRs::default(),
-        pdo_version: 0,
-        payload: vec![1, 2, 3, 4],
-        reserved: 0,
-    };
-    let soa = Soa::new(NmtState::Operational, RequestedService::NoService, 0);
-    [
-        EplFrame::new(MN, MacAddr::SOC, 255, 240, Message::Soc(soc)),
-        EplFrame::new(MN, CN, 1, 240, Message::PReq(preq)),
-        EplFrame::new(CN, MacAddr::PRES, 255, 1, Message::PRes(pres)),
-        EplFrame::new(MN, MacAddr::SOA, 255, 240, Message::Soa(soa)),
-    ]
-    .iter()
-    .map(|f| f.encode().unwrap())
-    .collect()
-}
-
 /// The monitor on a ring loses no frame silently: a burst of 2,000 cycles overflows the ring
 /// (256 blocks of 4 KiB, at most 7,168 small frames) while the monitor does not read; then
 /// it reads 150 cycles at about 1 ms (the ring holds about a second of them). Every frame
@@ -302,11 +278,11 @@ fn monitor_on_ring_accounts_for_every_frame() {
     let tx = ns.open(&["feed"]).unwrap().pop().unwrap();
     let config = RingConfig { block_size: 4 << 10, blocks: 256, block_timeout_ms: BURST_TIMEOUT_MS };
     let mon = Arc::new(open_ring(&ns, "mon", config));
-    let burst: Vec<Vec<u8>> = (0..BURST).flat_map(cycle_frames).collect();
+    let burst: Vec<Vec<u8>> = (0..BURST).flat_map(common::cycle_frames).collect();
     send_all(&*tx, burst.iter().cloned());
     std::thread::sleep(Duration::from_millis(300));
-    let mut paced: Vec<Vec<Vec<u8>>> = (BURST..BURST + 150).map(cycle_frames).collect();
-    paced.push(cycle_frames(BURST + 150).into_iter().take(1).collect());
+    let mut paced: Vec<Vec<Vec<u8>>> = (BURST..BURST + 150).map(common::cycle_frames).collect();
+    paced.push(common::cycle_frames(BURST + 150).into_iter().take(1).collect());
     let sent = (burst.len() + paced.iter().map(Vec::len).sum::<usize>()) as u64;
     let stop = Arc::new(AtomicBool::new(false));
     let monitor = {

@@ -88,3 +88,16 @@ pub fn login(addr: &str, user: &str, password: &str) -> (String, String) {
     let v: serde_json::Value = serde_json::from_str(&b).unwrap();
     (cookie, v["csrf_token"].as_str().unwrap().to_owned())
 }
+
+/// The shipped juggler rules (`crates/safety/examples/juggler.toml`) for a 1 ms cycle, as a
+/// POWERLINK segment of separate processes runs them: written to `dir`, their path returned.
+pub fn juggler_rules_1ms(dir: &std::path::Path) -> std::path::PathBuf {
+    let shipped = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../safety/examples/juggler.toml");
+    let text = std::fs::read_to_string(shipped).unwrap();
+    let text = text
+        .replace("cycle_time = 0.0004", "cycle_time = 0.001")
+        .replace("lease_time = 0.0008", "lease_time = 0.005");
+    let p = dir.join("juggler.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}

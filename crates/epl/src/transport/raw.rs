@@ -35,7 +35,7 @@ pub mod ring;
 
 use std::io::{self, IoSliceMut};
 use std::mem::{size_of, zeroed};
-use std::os::fd::{AsFd, AsRawFd};
+use std::os::fd::{AsFd, AsRawFd, BorrowedFd};
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
@@ -168,27 +168,58 @@ fn bind_epl(socket: &Socket, ifindex: i32) -> io::Result<()> {
     socket.bind(&addr)
 }
 
-/// Reads and resets the socket's PACKET_STATISTICS (frames queued plus dropped, and dropped,
-/// since the last read).
-fn packet_statistics(socket: &Socket) -> io::Result<libc::tpacket_stats> {
-    let mut st = libc::tpacket_stats { tp_packets: 0, tp_drops: 0 };
-    let mut len = size_of::<libc::tpacket_stats>() as libc::socklen_t;
-    // SAFETY: the fd is an open packet socket owned by `socket`; `st` is a live, writable
-    // `tpacket_stats` and `len` holds its exact size, so the kernel writes at most that many
-    // bytes into it.
+/// A plain C structure the kernel fills for `getsockopt(SOL_PACKET, ...)`: every bit
+/// pattern of its size is a valid value.
+///
+/// # Safety
+/// Implement only for `#[repr(C)]` structures of integers (the `libc` packet statistics).
+pub(super) unsafe trait PacketOption: Copy {}
+
+// SAFETY: `tpacket_stats` is `#[repr(C)]` with two `c_uint` fields.
+unsafe impl PacketOption for libc::tpacket_stats {}
+// SAFETY: `tpacket_stats_v3` is `#[repr(C)]` with three `c_uint` fields.
+unsafe impl PacketOption for libc::tpacket_stats_v3 {}
+
+/// Reads the SOL_PACKET option `name` of the packet socket `fd` into a `T` that starts as
+/// `value` (PACKET_STATISTICS: reads and resets the counters).
+pub(super) fn packet_option<T: PacketOption>(
+    fd: BorrowedFd<'_>,
+    name: libc::c_int,
+    mut value: T,
+) -> io::Result<T> {
+    let mut len = size_of::<T>() as libc::socklen_t;
+    // SAFETY: `fd` is an open packet socket; `value` is a live, writable `T` (a plain C
+    // structure of integers, `PacketOption`) and `len` holds its exact size, so the kernel
+    // writes at most that many bytes into it, and any bytes it writes form a valid `T`.
     let rc = unsafe {
         libc::getsockopt(
-            socket.as_raw_fd(),
+            fd.as_raw_fd(),
             libc::SOL_PACKET,
-            libc::PACKET_STATISTICS,
-            std::ptr::addr_of_mut!(st).cast::<libc::c_void>(),
+            name,
+            std::ptr::addr_of_mut!(value).cast::<libc::c_void>(),
             &mut len,
         )
     };
     if rc == 0 {
-        Ok(st)
+        Ok(value)
     } else {
         Err(io::Error::last_os_error())
+    }
+}
+
+/// Reads and resets the socket's PACKET_STATISTICS (frames queued plus dropped, and dropped,
+/// since the last read).
+fn packet_statistics(socket: &Socket) -> io::Result<libc::tpacket_stats> {
+    packet_option(socket.as_fd(), libc::PACKET_STATISTICS, libc::tpacket_stats { tp_packets: 0, tp_drops: 0 })
+}
+
+/// Sends `frame` whole on `socket` (a short send is an error).
+pub(super) fn send_frame(socket: &Socket, frame: &[u8]) -> io::Result<()> {
+    let n = socket.send(frame)?;
+    if n == frame.len() {
+        Ok(())
+    } else {
+        Err(io::Error::new(io::ErrorKind::WriteZero, format!("sent {n} of {} bytes", frame.len())))
     }
 }
 
@@ -230,12 +261,7 @@ fn set_promiscuous(socket: &Socket, ifindex: i32) -> io::Result<()> {
 
 impl EthLink for RawSocket {
     fn send(&self, frame: &[u8]) -> io::Result<()> {
-        let n = self.socket.send(frame)?;
-        if n == frame.len() {
-            Ok(())
-        } else {
-            Err(io::Error::new(io::ErrorKind::WriteZero, format!("sent {n} of {} bytes", frame.len())))
-        }
+        send_frame(&self.socket, frame)
     }
 
     fn recv(&self, buf: &mut [u8], timeout: Duration) -> io::Result<Option<(usize, Instant)>> {

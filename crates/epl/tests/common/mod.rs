@@ -303,3 +303,32 @@ pub fn exclusive() -> std::sync::MutexGuard<'static, ()> {
     static LOCK: Mutex<()> = Mutex::new(());
     LOCK.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
+
+/// Cycle `k` of a 1 ms segment with one CN: SoC (RelativeTime k ms), PReq, PRes, SoA.
+pub fn cycle_frames(k: u64) -> Vec<Vec<u8>> {
+    use motus_epl_protocol::{
+        EplFrame, Flags, MacAddr, Message, PReq, PRes, PrRs, RequestedService, Soa, Soc,
+    };
+    let mn = MacAddr([2, 0, 0, 0, 0, 240]);
+    let cn = MacAddr([2, 0, 0, 0, 0, 1]);
+    let soc = Soc { relative_time: 1000 * k, ..Soc::default() };
+    let preq = PReq { flags: Flags::RD, payload: vec![0; 4], ..PReq::default() };
+    let pres = PRes {
+        nmt_state: NmtState::Operational,
+        flags: Flags::RD,
+        pr_rs: PrRs::default(),
+        pdo_version: 0,
+        payload: vec![1, 2, 3, 4],
+        reserved: 0,
+    };
+    let soa = Soa::new(NmtState::Operational, RequestedService::NoService, 0);
+    [
+        EplFrame::new(mn, MacAddr::SOC, 255, 240, Message::Soc(soc)),
+        EplFrame::new(mn, cn, 1, 240, Message::PReq(preq)),
+        EplFrame::new(cn, MacAddr::PRES, 255, 1, Message::PRes(pres)),
+        EplFrame::new(mn, MacAddr::SOA, 255, 240, Message::Soa(soa)),
+    ]
+    .iter()
+    .map(|f| f.encode().unwrap())
+    .collect()
+}

@@ -34,7 +34,7 @@ use std::time::{Duration, Instant, SystemTime};
 use motus_epl_protocol::MacAddr;
 use socket2::Socket;
 
-use super::{bind_epl, interface_mac, packet_socket, set_promiscuous};
+use super::{bind_epl, interface_mac, packet_option, packet_socket, send_frame, set_promiscuous};
 use crate::transport::{EthLink, KernelRxStats};
 
 /// TPACKET_V3 does not cut the ring into frames, but the kernel checks that `tp_frame_nr`
@@ -480,24 +480,8 @@ impl ClockPair {
 
 /// Reads and resets a TPACKET_V3 socket's PACKET_STATISTICS.
 fn packet_statistics_v3(fd: BorrowedFd<'_>) -> io::Result<libc::tpacket_stats_v3> {
-    let mut st = libc::tpacket_stats_v3 { tp_packets: 0, tp_drops: 0, tp_freeze_q_cnt: 0 };
-    let mut len = size_of::<libc::tpacket_stats_v3>() as libc::socklen_t;
-    // SAFETY: `fd` is an open packet socket; `st` is a live, writable `tpacket_stats_v3` and
-    // `len` holds its exact size, so the kernel writes at most that many bytes into it.
-    let rc = unsafe {
-        libc::getsockopt(
-            fd.as_raw_fd(),
-            libc::SOL_PACKET,
-            libc::PACKET_STATISTICS,
-            std::ptr::addr_of_mut!(st).cast::<libc::c_void>(),
-            &mut len,
-        )
-    };
-    if rc == 0 {
-        Ok(st)
-    } else {
-        Err(io::Error::last_os_error())
-    }
+    let zero = libc::tpacket_stats_v3 { tp_packets: 0, tp_drops: 0, tp_freeze_q_cnt: 0 };
+    packet_option(fd, libc::PACKET_STATISTICS, zero)
 }
 
 /// Sets a `SOL_PACKET` option to the bytes of `value`: a C type without padding (`c_int`,
@@ -624,12 +608,7 @@ impl RingSocket {
 impl EthLink for RingSocket {
     /// Sends with a plain `send` on the ring's socket (the ring is for receiving only).
     fn send(&self, frame: &[u8]) -> io::Result<()> {
-        let n = self.socket.send(frame)?;
-        if n == frame.len() {
-            Ok(())
-        } else {
-            Err(io::Error::new(io::ErrorKind::WriteZero, format!("sent {n} of {} bytes", frame.len())))
-        }
+        send_frame(&self.socket, frame)
     }
 
     /// The next frame of the ring, with the kernel's time stamp of its reception; waits in
