@@ -5,7 +5,7 @@
 //!
 //! Needs root and the openPOWERLINK binaries (`MOTUS_OPLK_DIR`, default
 //! `<workspace>/../shared/oracles/openpowerlink`); skipped with a printed reason otherwise.
-//! The hold time in OPERATIONAL is `MOTUS_OPLK_SECONDS` (default 20 s); `MOTUS_OPLK_REALTIME`
+//! The hold time in OPERATIONAL is `MOTUS_OPLK_SECONDS` (default 10 s); `MOTUS_OPLK_REALTIME`
 //! is the MN's `--realtime` (default auto). The CN runs through
 //! the directory's `run-node.sh` (its own IPC namespace and /dev/shm). Every time-out is a
 //! generous liveness bound; the namespaces and processes are removed also when it fails.
@@ -207,7 +207,7 @@ fn motus_mn_boots_configures_and_reboots_the_openpowerlink_cn() {
         eprintln!("skipped: no openPOWERLINK binaries in {} (set MOTUS_OPLK_DIR)", oplk.display());
         return;
     }
-    let hold: u64 = std::env::var("MOTUS_OPLK_SECONDS").ok().and_then(|s| s.parse().ok()).unwrap_or(20);
+    let hold: u64 = std::env::var("MOTUS_OPLK_SECONDS").ok().and_then(|s| s.parse().ok()).unwrap_or(10);
     let mut rig = Rig::new();
     let cn_log = Log::default();
     let mn_log = Log::default();
