@@ -529,6 +529,11 @@ impl<'a> Element<'a, '_> {
         if let Some(h) = high {
             entry = entry.high_limit(h);
         }
+        // Without a value in the file the entry starts at zero, which its limits may refuse:
+        // then the value is missing, not zero.
+        if default.is_none() && actual.is_none() && entry.check(entry.value()).is_err() {
+            return Err(XddError::MissingAttribute { at: self.at(), attribute: "defaultValue" });
+        }
         for (attribute, value) in [("defaultValue", &default), ("actualValue", &actual)] {
             let Some(value) = value else { continue };
             let reason = match entry.check(&value.bytes) {

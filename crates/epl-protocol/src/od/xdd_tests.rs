@@ -287,6 +287,12 @@ fn malformed_descriptions_are_refused_with_where_and_what() {
         r("<Object index=\"2000\" name=\"X\" objectType=\"7\" dataType=\"0007\"/>"),
         XddError::MissingAttribute { at: at(4, obj, None), attribute: "accessType" }
     );
+    // Without a value the entry would start at 0, which its limits refuse (found by
+    // `mutated_reference_never_panics`).
+    assert_eq!(
+        r(&var("0006", "lowLimit=\"300\" highLimit=\"1500\"")),
+        XddError::MissingAttribute { at: at(4, obj, None), attribute: "defaultValue" }
+    );
     assert!(matches!(
         r("<Object index=\"2000\" name=\"X\" objectType=\"7\" dataType=\"0007\" accessType=\"rx\"/>"),
         XddError::InvalidAttribute { at: a, attribute: "accessType", .. } if a == at(4, obj, None)
