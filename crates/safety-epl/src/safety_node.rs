@@ -29,10 +29,7 @@ use motus_epl::node::cn::{serve_frame, CnError, CnEvent, ControlledNode};
 use motus_epl::sim::stats::SampleWindow;
 use motus_epl::sim::Percentiles;
 use motus_epl::EthLink;
-use motus_epl_protocol::{
-    DeviceIdentity, NmtState, ObjectDictionary, SafetyNodeTiming, ETHERTYPE_EPL, MN_NODE_ID,
-    SAFETY_LEASE_OBJECT,
-};
+use motus_epl_protocol::{DeviceIdentity, NmtState, ObjectDictionary, SafetyNodeTiming, SAFETY_LEASE_OBJECT};
 use motus_safety::{Lease, StopError, StopTarget};
 
 /// Options of a [`SafetyNode`].
@@ -167,15 +164,6 @@ impl SafetyNode {
         Ok((node, target))
     }
 
-    /// Whether `raw` is a PReq from the MN for this node (the checks of
-    /// [`ControlledNode::pres_for`] on the raw bytes).
-    fn is_preq_for_me(&self, raw: &[u8]) -> bool {
-        raw.get(12..14) == Some(&ETHERTYPE_EPL.to_be_bytes()[..])
-            && raw.get(14).map(|t| t & 0x7F) == Some(0x03)
-            && raw.get(15) == Some(&self.cn.node_id())
-            && raw.get(16) == Some(&MN_NODE_ID)
-    }
-
     /// Writes the lease of `now` into the dictionary (the PRes about to be sent); returns
     /// SafeToRun.
     fn publish(&mut self, now: Instant) -> bool {
@@ -207,7 +195,7 @@ impl SafetyNode {
     /// lease of this moment; everything else goes to the CN (NMT commands, SoA invitations,
     /// SDO).
     pub fn on_frame(&mut self, raw: &[u8], at: Instant) {
-        let safe = self.is_preq_for_me(raw).then(|| self.publish(self.clock.now()));
+        let safe = self.cn.is_preq_for_me(raw).then(|| self.publish(self.clock.now()));
         let served = serve_frame(&mut self.cn, &*self.link, &*self.clock, raw);
         self.send_errors += served.send_errors;
         let Some(sent) = served.pres_sent_at else { return };

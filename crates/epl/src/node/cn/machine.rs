@@ -321,18 +321,23 @@ impl ControlledNode {
         self.pres_dirty = true;
     }
 
+    /// Whether `raw` is a PReq from the MN for this node (checked on the raw bytes:
+    /// EtherType 0x88AB without VLAN tag, message type PReq, destination this node, source
+    /// the MN), whatever the node's state.
+    pub fn is_preq_for_me(&self, raw: &[u8]) -> bool {
+        let ethertype = ETHERTYPE_EPL.to_be_bytes();
+        raw.get(12..14) == Some(&ethertype[..])
+            && raw.get(14).map(|t| t & 0x7F) == Some(0x03)
+            && raw.get(15) == Some(&self.node)
+            && raw.get(16) == Some(&MN_NODE_ID)
+    }
+
     /// The PRes to send at once if `raw` is a PReq for this node that it answers in its
     /// state (checked on the raw bytes: EtherType 0x88AB without VLAN tag, message type
     /// PReq, destination this node, source the MN), else `None`. The MS flag of the PReq is
     /// copied. Call [`ControlledNode::on_answered_preq`] with the PReq after sending it.
     pub fn pres_for(&mut self, raw: &[u8]) -> Option<&[u8]> {
-        let header = raw.get(12..17)?;
-        let ethertype = ETHERTYPE_EPL.to_be_bytes();
-        let is_preq = header.get(0..2) == Some(&ethertype[..])
-            && header.get(2).map(|t| t & 0x7F) == Some(0x03)
-            && header.get(3) == Some(&self.node)
-            && header.get(4) == Some(&MN_NODE_ID);
-        if !is_preq || !answers_preq(self.state) {
+        if !self.is_preq_for_me(raw) || !answers_preq(self.state) {
             return None;
         }
         if self.pres_dirty {
