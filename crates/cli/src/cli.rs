@@ -610,7 +610,8 @@ pub struct DemoArgs {
     /// Keep the simulators running after the sequence until Ctrl-C (with --ps1a-sequence).
     #[arg(long)]
     pub stay: bool,
-    /// Real-time priorities of the device and cyclic threads (docs/decisions.md).
-    #[arg(long, value_enum, default_value_t = crate::cli_station::RealtimeArg::Nice)]
+    /// Real-time priorities of the device and cyclic threads (docs/decisions.md): `auto` by
+    /// default (SCHED_FIFO where permitted, else nice levels and a warning).
+    #[arg(long, value_enum, default_value_t = crate::cli_station::RealtimeArg::Auto)]
     pub realtime: crate::cli_station::RealtimeArg,
 }

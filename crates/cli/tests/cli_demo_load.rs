@@ -19,8 +19,9 @@
 //! and simulator threads where permitted (root: CI), else nice levels (the default policy);
 //! web threads at nice +10 either way. The test needs no privilege; with it, the machine's
 //! threads hold beside other work on the host (the suite runs beside CPU hogs, issue 19). The clients run on one thread (a current-thread runtime).
-//! `MOTUS_LOAD_SECONDS` (default 60) and `MOTUS_LOAD_REALTIME` (`auto`/`nice`/`off`, default
-//! `auto`) change the run for measurements. Uses the release binary when it is built
+//! `MOTUS_LOAD_SECONDS` (the load's duration: default 20 s on a developer's machine, the
+//! issue's 60 s in CI) and `MOTUS_LOAD_REALTIME` (`auto`/`nice`/`off`, default `auto`) change
+//! the run for measurements. Uses the release binary when it is built
 //! (scripts/test.sh builds it), as the browser test does.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
@@ -181,7 +182,7 @@ struct Seen {
 
 #[test]
 fn two_hundred_clients_and_a_login_burst_do_not_starve_the_machine() {
-    let seconds = env_or("MOTUS_LOAD_SECONDS", 60);
+    let seconds = env_or("MOTUS_LOAD_SECONDS", 20);
     let realtime = std::env::var("MOTUS_LOAD_REALTIME").unwrap_or_else(|_| "auto".into());
     let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
     let addr = format!("127.0.0.1:{port}");

@@ -13,7 +13,7 @@
 //! test's processes, also when it fails (the test kills the whole process group).
 //!
 //! Pass: the MN's log shows node 1 OPERATIONAL within a generous liveness time-out, configured
-//! by SDO. At 50 ms, for the hold time (`MOTUS_OPLK_SECONDS`, default 10 s; 60 s in CI) no
+//! by SDO. At 50 ms, for the hold time (`MOTUS_OPLK_SECONDS`, default 5 s; 60 s in CI) no
 //! error event and no other state of node 1 (a reset or a fall-back would show as one), and
 //! the Motus CN's own log shows no state change away from OPERATIONAL. At 1 ms both nodes
 //! must answer within 200 us every cycle, which a loaded host's scheduler can break (the
@@ -34,8 +34,8 @@ mod common;
 use std::time::{Duration, Instant};
 
 use common::oplk::{
-    is_operational, node1_error, node1_state, oplk_dir, percentile_us, seconds_env, skip_reason,
-    write_figures, Rig, SERIAL,
+    hold, is_operational, node1_error, node1_state, oplk_dir, percentile_us, skip_reason, write_figures, Rig,
+    SERIAL,
 };
 
 const SCENARIO: &str = r#"
@@ -74,7 +74,7 @@ fn run_with(cdc: &str, tag: &str, policy: Hold, extra_cn_args: &str) {
         return;
     }
     let _serial = SERIAL.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-    let hold = seconds_env("MOTUS_OPLK_SECONDS", 10);
+    let hold = hold();
     let unique = std::process::id() % 10_000;
     let (mnp, cnp) = (format!("m{unique}{tag}"), format!("c{unique}{tag}"));
     let mut cn_args = format!("--realtime auto {extra_cn_args}");

@@ -202,6 +202,9 @@ impl Station {
                 &addr,
                 "--db",
                 db.to_str().unwrap(),
+                // Several stations share two cores in the test suite: no FIFO threads.
+                "--realtime",
+                "nice",
             ],
             "Motus station",
             true,

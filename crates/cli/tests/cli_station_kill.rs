@@ -99,7 +99,7 @@ fn killing_the_station_stops_every_can_drive_by_its_heartbeat_watchdog() {
 
     let mut station = Station(
         Command::new(MOTUS)
-            .args(["serve", "--config", cfg])
+            .args(["serve", "--config", cfg, "--realtime", "nice"])
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()

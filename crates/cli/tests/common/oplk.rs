@@ -54,6 +54,12 @@ pub fn mn_prefix() -> String {
     }
 }
 
+/// How long a test holds its segment in operation: `MOTUS_OPLK_SECONDS`, default 5 s on a
+/// developer's machine (CI sets the 60 s).
+pub fn hold() -> Duration {
+    seconds_env("MOTUS_OPLK_SECONDS", 5)
+}
+
 /// A number of seconds from the environment variable `name`, else `default`.
 pub fn seconds_env(name: &str, default: u64) -> Duration {
     Duration::from_secs(std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default))
