@@ -451,6 +451,7 @@ impl Kv01Arm {
         for (joint, x0, d, _, _) in starts {
             if let Some(r) = st.joints.get_mut(usize::from(joint) - 1) {
                 r.override_rpm = None;
+                r.last_correction_at = None;
                 r.motion = Some(controller::Motion { start, plan: plan.clone(), x0, d, settled_at: None });
             }
         }

@@ -17,6 +17,10 @@ use std::time::{Duration, Instant};
 /// controller stops it with a fault.
 pub const SOFT_LIMIT_OVERSHOOT_DEG: f64 = 1.0;
 
+/// The largest fraction of a joint's position error one sample of the position loop corrects
+/// (the gain is capped at this over the loop's real sample period).
+pub const MAX_CORRECTION_PER_SAMPLE: f64 = 0.5;
+
 /// A joint following a (normalised, shared) profile: `x(t) = x0 + d * s(t)`.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Motion {
@@ -55,6 +59,9 @@ pub(crate) struct JointRuntime {
     pub recovering: bool,
     /// When a D1 reply last set the status bits: older resolver replies do not overwrite them.
     pub status_set_at: Option<Instant>,
+    /// When the position loop last computed a correction for this joint: the loop's real
+    /// sample period (retries and a loaded host stretch it well beyond the cycle).
+    pub last_correction_at: Option<Instant>,
 }
 
 impl JointRuntime {
@@ -141,7 +148,13 @@ fn speed_command(spec: &JointSpec, r: &mut JointRuntime, config: &ArmConfig, now
         }
         return Some(rpm);
     }
+    let period = r
+        .last_correction_at
+        .map_or(config.cycle, |t| now.saturating_duration_since(t))
+        .max(config.cycle)
+        .as_secs_f64();
     let m = r.motion.as_mut()?;
+    r.last_correction_at = Some(now);
     let t = now.saturating_duration_since(m.start).as_secs_f64();
     let (s, sv) = m.plan.sample(t);
     let x_ref = m.x0 + m.d * s;
@@ -159,7 +172,11 @@ fn speed_command(spec: &JointSpec, r: &mut JointRuntime, config: &ArmConfig, now
             return Some(0.0);
         }
     }
-    let mut deg_s = (v_ref + config.kp * err).clamp(-spec.max_deg_s(), spec.max_deg_s());
+    // A sampled proportional loop overshoots once gain x period passes 1 and oscillates
+    // around the target beyond 2: the gain is capped so one period corrects at most half the
+    // error, however late this sample came.
+    let kp = config.kp.min(MAX_CORRECTION_PER_SAMPLE / period);
+    let mut deg_s = (v_ref + kp * err).clamp(-spec.max_deg_s(), spec.max_deg_s());
     if let Some((lo, hi)) = spec.soft_limits_deg {
         if angle > hi + SOFT_LIMIT_OVERSHOOT_DEG || angle < lo - SOFT_LIMIT_OVERSHOOT_DEG {
             r.motion = None;
@@ -246,5 +263,45 @@ pub(crate) fn run(bus: &Kv01Bus, shared: &Shared, stop: &AtomicBool, clock: &dyn
         } else {
             next = now;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use motus_kv01_protocol::JointStatus;
+
+    /// A joint whose move has ended 0.1 deg short, sampled `late` after its last correction.
+    fn settle_command(late: Duration) -> f64 {
+        let config = ArmConfig::default();
+        let spec = JointSpec::kv01(1);
+        let t0 = Instant::now();
+        let now = t0 + Duration::from_secs(5);
+        let mut r = JointRuntime {
+            reading: Some(Reading { raw: 0, angle: 9.9, status: JointStatus::default(), at: now }),
+            enabled: true,
+            motion: Some(Motion {
+                start: t0,
+                plan: Plan::to_target(0.0, 0.0, 1.0, 1.0, 1.0),
+                x0: 0.0,
+                d: 10.0,
+                settled_at: None,
+            }),
+            last_correction_at: Some(now - late),
+            ..JointRuntime::default()
+        };
+        let rpm = speed_command(&spec, &mut r, &config, now).unwrap_or_default();
+        rpm * spec.deg_s_per_rpm()
+    }
+
+    #[test]
+    fn a_late_sample_corrects_at_most_half_the_error_over_its_period() {
+        // On time (one cycle): the configured gain, 4/s x 0.1 deg.
+        let on_time = settle_command(ArmConfig::default().cycle);
+        assert!((on_time - 0.4).abs() < 0.02, "{on_time} deg/s");
+        // 400 ms late (retries on a noisy line, a loaded host): 0.4 s x 4/s would overshoot
+        // by 60 %; at most half the error per period instead.
+        let late = settle_command(Duration::from_millis(400));
+        assert!(late > 0.0 && late * 0.4 <= 0.05 + 1e-3, "{late} deg/s");
     }
 }

@@ -38,7 +38,10 @@ fn moves_complete_with_faults_injected_over_a_pty() {
     arm.power_up(1).unwrap();
     for target in [5.0, -5.0] {
         arm.move_joints(&[(1, target)], Some(30.0), Some(60.0)).unwrap();
-        arm.wait_idle(&[1], Duration::from_secs(60)).unwrap();
+        if let Err(e) = arm.wait_idle(&[1], Duration::from_secs(60)) {
+            let truth = lock(&sim.arm).joint_angles();
+            panic!("{e:?}; the simulator's true angles {truth:?}; the host's view {:?}", arm.joints());
+        }
     }
     let worst = arm.joints().iter().map(|s| s.longest_gap).max().unwrap_or_default();
     let stats = arm.bus().master().stats();
