@@ -45,7 +45,9 @@ impl Sim {
     /// The host side: the pty's symlink opened as a serial port.
     fn bus(&self) -> Nfv2Bus {
         let link = SerialLink::open(self.path.to_str().unwrap(), BAUD).unwrap();
-        let config = BusConfig { margin: Duration::from_millis(20), retries: 2 };
+        // Liveness margins: a loaded host may hold a reply up well beyond the line's own
+        // time-out (the time-outs themselves are tested on virtual time).
+        let config = BusConfig { margin: Duration::from_millis(200), retries: 3 };
         Nfv2Bus::new(Arc::new(BusMaster::new(Box::new(link), config)))
     }
 
@@ -75,6 +77,7 @@ fn the_scheduler_cycles_and_raw_frames_go_between_cycles_over_a_pty() {
     let config = SchedulerConfig {
         cycle: Duration::from_millis(15),
         confirm_timeout: LIVENESS,
+        silence: LIVENESS,
         ..SchedulerConfig::default()
     };
     let sched = Scheduler::start(sim.bus(), vec![DriveConfig::new(1), DriveConfig::new(2)], config).unwrap();
@@ -91,6 +94,7 @@ fn a_drive_enables_and_moves_over_a_pty() {
     let config = SchedulerConfig {
         cycle: Duration::from_millis(15),
         confirm_timeout: LIVENESS,
+        silence: LIVENESS,
         ..SchedulerConfig::default()
     };
     let sched = Scheduler::start(sim.bus(), vec![DriveConfig::new(1), DriveConfig::new(2)], config).unwrap();
@@ -110,7 +114,11 @@ fn the_head_homes_and_goes_to_a_target_over_a_paced_pty() {
     // Near the HOME edges, to keep it short.
     sim.with(1, |c| c.place_axis(-18_000.0).unwrap());
     sim.with(2, |c| c.place_axis(-19_000.0).unwrap());
-    let scheduler = SchedulerConfig { confirm_timeout: LIVENESS, ..PanTiltConfig::default().scheduler };
+    let scheduler = SchedulerConfig {
+        confirm_timeout: LIVENESS,
+        silence: LIVENESS,
+        ..PanTiltConfig::default().scheduler
+    };
     let config = PanTiltConfig { home_timeout: LIVENESS, scheduler, ..PanTiltConfig::default() };
     let pt = PanTilt::start(sim.bus(), config).unwrap();
     pt.home().unwrap();
