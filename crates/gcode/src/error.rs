@@ -41,6 +41,13 @@ pub enum ErrorKind {
     /// A named parameter read before it was set.
     #[error("Named parameter #<{0}> not defined")]
     UndefinedNamedParameter(String),
+    /// An assignment to one of LinuxCNC's read-only named parameters (`#<_feed>`, ...).
+    #[error("Cannot assign to read-only parameter #<{0}>")]
+    ReadOnlyNamedParameter(String),
+    /// An assignment to a read-only numbered parameter (tool data #5400-#5413, the current
+    /// position #5420-#5428).
+    #[error("Parameter is readonly: #{0}")]
+    ReadOnlyParameter(usize),
     /// A value that must be an integer is not one.
     #[error("Non-integer value for integer: {0}")]
     NonInteger(f64),

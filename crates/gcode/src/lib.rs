@@ -12,6 +12,16 @@
 //!   (see [`canon`]). Differences: interpreter-generated `COMMENT("interpreter: ...")`
 //!   lines and `ON_RESET()` are not emitted; unsupported codes (cutter compensation,
 //!   tool length offsets, canned cycles, G93/G95, XY rotation, U/V/W) are errors.
+//! * Parameters as LinuxCNC 2.9 keeps them: the current position #5420-#5428 and the
+//!   predefined named parameters (`#<_x>`, `#<_abs_x>`, `#<_feed>`, `#<_motion_mode>`,
+//!   `#<_coord_system>`, ...: the list is `params::SYSTEM_NAMES`) are set before each line
+//!   is read; they and the tool data #5400-#5413 are read-only (an assignment is an error).
+//!   #5220 is 1 (G54) from the start. G92 saves its offsets in #5211-#5216 with the flag
+//!   #5210, G92.1 clears both, G92.2 clears the flag only (G92.3 brings them back). Saved
+//!   offsets are in millimetres, the machine's units (the standalone `rs274` keeps them in
+//!   inches: a program that reads #5211 directly sees 25.4 times its value here).
+//! * `(DEBUG,text)` is a message and `(PRINT,text)` a comment, each with the values of the
+//!   parameters named in `text` (six decimals, `######` for one not defined).
 //! * Seed additions: every M number 0..=1023 other than M0-M5, M7-M9, M30 is an
 //!   M-function ([`Canon::MFunction`], synchronous unless listed in
 //!   [`InterpreterConfig::async_m_functions`]), executed before the block's motion;

@@ -85,6 +85,10 @@ pub(crate) struct OWord {
 pub(crate) enum Remark<'a> {
     Comment(&'a str),
     Message(&'a str),
+    /// `(DEBUG,text)`: a message with the parameters in `text` substituted.
+    Debug(&'a str),
+    /// `(PRINT,text)`: printed with the parameters in `text` substituted.
+    Print(&'a str),
 }
 
 /// One parsed program line (its buffers are reused from line to line).
@@ -131,8 +135,13 @@ impl Line {
     pub(crate) fn remark<'t>(&self, text: &'t str) -> Option<Remark<'t>> {
         let body = self.comment.and_then(|(a, b)| text.get(a..b))?;
         let t = body.trim_start();
-        Some(if t.get(..4).is_some_and(|p| p.eq_ignore_ascii_case("msg,")) {
+        let keyword = |k: &str| t.get(..k.len()).is_some_and(|p| p.eq_ignore_ascii_case(k));
+        Some(if keyword("msg,") {
             Remark::Message(t.get(4..).unwrap_or(""))
+        } else if keyword("debug,") {
+            Remark::Debug(t.get(6..).unwrap_or(""))
+        } else if keyword("print,") {
+            Remark::Print(t.get(6..).unwrap_or(""))
         } else {
             Remark::Comment(body)
         })

@@ -33,18 +33,36 @@ impl Interpreter<'_> {
             if s < 0.0 {
                 return Err((b.first_col, ErrorKind::NegativeSpindle));
             }
+            self.rpm = s;
             self.emit(Canon::SetSpindleSpeed { rpm: s });
         }
         match b.m_spindle {
-            Some(3) => self.emit(Canon::StartSpindleClockwise),
-            Some(4) => self.emit(Canon::StartSpindleCounterclockwise),
-            Some(_) => self.emit(Canon::StopSpindleTurning),
+            Some(3) => {
+                self.spindle = 1;
+                self.emit(Canon::StartSpindleClockwise);
+            }
+            Some(4) => {
+                self.spindle = -1;
+                self.emit(Canon::StartSpindleCounterclockwise);
+            }
+            Some(_) => {
+                self.spindle = 0;
+                self.emit(Canon::StopSpindleTurning);
+            }
             None => {}
         }
         match b.m_coolant {
-            Some(7) => self.emit(Canon::MistOn),
-            Some(8) => self.emit(Canon::FloodOn),
+            Some(7) => {
+                self.mist = true;
+                self.emit(Canon::MistOn);
+            }
+            Some(8) => {
+                self.flood = true;
+                self.emit(Canon::FloodOn);
+            }
             Some(_) => {
+                self.mist = false;
+                self.flood = false;
                 self.emit(Canon::MistOff);
                 self.emit(Canon::FloodOff);
             }
@@ -118,15 +136,16 @@ impl Interpreter<'_> {
                             *slot = p + *slot - v;
                         }
                     }
-                    self.set_g92(new);
+                    self.set_g92(new, G92Params::Save);
                 }
-                g::G92_1 | g::G92_2 => self.set_g92([0.0; 6]),
+                g::G92_1 => self.set_g92([0.0; 6], G92Params::Clear),
+                g::G92_2 => self.set_g92([0.0; 6], G92Params::Suspend),
                 g::G92_3 => {
                     let mut new = [0.0; 6];
                     for (k, slot) in new.iter_mut().enumerate() {
-                        *slot = self.params.get(5211 + k);
+                        *slot = self.params.get(5211 + k) / self.user_units_per_program_unit(k);
                     }
-                    self.set_g92(new);
+                    self.set_g92(new, G92Params::Restore);
                 }
                 _ => {}
             }
@@ -218,8 +237,16 @@ impl Interpreter<'_> {
         self.emit(Canon::SetFeedRate { rate: 0.0 });
         self.feed = 0.0;
         self.feed_mm = 0.0;
+        self.spindle = 0;
         self.emit(Canon::StopSpindleTurning);
         self.emit(Canon::SetSpindleMode);
+        // Coolant that is on is turned off (LinuxCNC: mist, then flood).
+        if std::mem::take(&mut self.mist) {
+            self.emit(Canon::MistOff);
+        }
+        if std::mem::take(&mut self.flood) {
+            self.emit(Canon::FloodOff);
+        }
         if pallet {
             self.emit(Canon::PalletShuttle);
         }
@@ -227,7 +254,9 @@ impl Interpreter<'_> {
         self.done = true;
     }
 
-    fn set_g92(&mut self, new: Pose) {
+    /// Sets the G92 offsets to `new` (program units) and the saved offsets #5211-#5216 and
+    /// their flag #5210 as LinuxCNC does for the code that asked (`params`).
+    fn set_g92(&mut self, new: Pose, params: G92Params) {
         // Keep the machine position: pos + g92 is invariant.
         for k in 0..6 {
             if let (Some(p), Some(o), Some(n)) = (self.pos.get_mut(k), self.g92.get(k), new.get(k)) {
@@ -235,11 +264,32 @@ impl Interpreter<'_> {
             }
         }
         self.g92 = new;
-        for (k, v) in new.iter().enumerate() {
-            self.params.set(5211 + k, *v);
+        match params {
+            G92Params::Save => {
+                for (k, v) in new.iter().enumerate() {
+                    self.params.set(5211 + k, v * self.user_units_per_program_unit(k));
+                }
+            }
+            G92Params::Clear => {
+                for k in 0..6 {
+                    self.params.set(5211 + k, 0.0);
+                }
+            }
+            G92Params::Suspend | G92Params::Restore => {}
         }
-        self.params.set(5210, if new.iter().any(|v| *v != 0.0) { 1.0 } else { 0.0 });
+        let applied = matches!(params, G92Params::Save | G92Params::Restore);
+        self.params.set(5210, if applied { 1.0 } else { 0.0 });
         self.emit(Canon::SetG92Offset { offset: new });
+    }
+
+    /// Saved offsets are kept in the machine's (user) units, millimetres and degrees, as
+    /// LinuxCNC keeps them in its configured units: the factor from program units for axis `k`.
+    fn user_units_per_program_unit(&self, k: usize) -> f64 {
+        if k < 3 {
+            self.units.mm_per_unit()
+        } else {
+            1.0
+        }
     }
 
     fn set_origin(&mut self, k: usize, new: Pose) {
@@ -292,4 +342,17 @@ impl Interpreter<'_> {
         }
         self.emit(Canon::UseLengthUnits { units: u });
     }
+}
+
+/// What a G92-family code does with the saved offsets #5211-#5216 and their flag #5210.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum G92Params {
+    /// G92: the new offsets are saved, the flag set.
+    Save,
+    /// G92.1: offsets and saved values zero, the flag cleared.
+    Clear,
+    /// G92.2: offsets zero, the saved values kept for G92.3, the flag cleared.
+    Suspend,
+    /// G92.3: the saved values applied again, the flag set.
+    Restore,
 }
