@@ -3,14 +3,17 @@
 //!
 //! Order within a block: O-word, comment/message, parameter assignments (all values on a
 //! line are read first, as in LinuxCNC), `EX` writes, feed mode (G94), F, S, M3/M4/M5,
-//! M7/M8/M9, the seed's M-functions, G4, G17-G19, G20/G21, G54-G59.3, G90/G91,
-//! G90.1/G91.1, G10/G92.x, motion (G0-G3, with G53), M0/M1/M2/M30.
+//! M7/M8/M9, the seed's M-functions, G4, G17-G19, G20/G21, G54-G59.3, G61/G61.1/G64,
+//! G90/G91, G90.1/G91.1, G98/G99, G10/G92.x, motion (G0-G3 with G53, canned cycles
+//! G73/G81/G82/G83/G85/G89, G80), M0/M1/M2/M30.
 //!
-//! Submodules: `modal` (a block's modal changes), `motion` (moves and arcs), `oword`
+//! Submodules: `modal` (a block's modal changes), `motion` (moves and arcs), `cycles`
+//! (canned cycles and path control), `oword`
 //! (O-word control flow), `system_params` (LinuxCNC's read-only parameters and the
 //! `(DEBUG,...)` text). One line at a time is parsed into a reused [`Line`]; only
 //! O-word lines keep their parse (loops and calls come back to them).
 
+mod cycles;
 mod modal;
 mod motion;
 mod oword;
@@ -128,6 +131,9 @@ pub struct Interpreter<'a> {
     coord: usize,
     origins: [Pose; 9],
     g92: Pose,
+    /// Canned cycles' sticky words and levels, and the path control in force.
+    cycles: cycles::CycleState,
+    path: cycles::PathControl,
     /// The last S word, and the spindle (1 clockwise, -1 counter-clockwise, 0 stopped) and
     /// coolant states, for LinuxCNC's `#<_rpm>`, `#<_spindle_on>`, `#<_mist>`...
     rpm: f64,
@@ -176,6 +182,8 @@ impl<'a> Interpreter<'a> {
             coord: 0,
             origins: [[0.0; 6]; 9],
             g92: [0.0; 6],
+            cycles: cycles::CycleState::default(),
+            path: cycles::PathControl::default(),
             rpm: 0.0,
             spindle: 0,
             mist: false,

@@ -2,6 +2,7 @@
 //! spindle, coolant, the seed's M-functions, dwell, plane, units, coordinate system,
 //! distance modes, G10/G92, motion, stops and the program-end reset.
 
+use super::cycles::Cycle;
 use super::motion::Motion;
 use super::{origin_param, Interpreter};
 use crate::block::{g, Block};
@@ -109,11 +110,17 @@ impl Interpreter<'_> {
                 self.emit(Canon::SetXyRotation { degrees: 0.0 });
             }
         }
+        if let Some((code, _)) = gcode(13) {
+            self.set_path_control(code, b);
+        }
         if let Some((code, _)) = gcode(3) {
             self.absolute = code == g::G90;
         }
         if let Some((code, _)) = gcode(4) {
             self.arc_absolute = code == g::G90_1;
+        }
+        if let Some((code, _)) = gcode(10) {
+            self.cycles.retract_to_initial = code == g::G98;
         }
         let nonmodal = gcode(0);
         let mut axes_used = false;
@@ -154,14 +161,16 @@ impl Interpreter<'_> {
         if axes_used && explicit_motion.is_some_and(|(c, _)| c != g::G80) {
             return Err((b.first_col, ErrorKind::TwoAxisUsers));
         }
+        let previous = self.motion;
         if let Some((code, _)) = explicit_motion {
-            self.motion = match code {
+            let m = match code {
                 g::G0 => Some(Motion::Rapid),
                 g::G1 => Some(Motion::Feed),
                 g::G2 => Some(Motion::Cw),
                 g::G3 => Some(Motion::Ccw),
-                _ => None,
+                other => Cycle::from_code(other).map(Motion::Cycle),
             };
+            self.set_motion_mode(m);
         }
         let g53 = nonmodal.filter(|(c, _)| *c == g::G53);
         if !axes_used {
@@ -169,12 +178,20 @@ impl Interpreter<'_> {
                 && (b.r.is_some() || b.ijk.iter().any(Option::is_some));
             // LinuxCNC: an explicit G0/G1 without axis words still moves (to where it is).
             let bare_straight = explicit_motion.is_some_and(|(c, _)| c == g::G0 || c == g::G1);
-            if b.has_axes() || arc_words || bare_straight {
+            let bare_cycle = explicit_motion.is_some_and(|(c, _)| Cycle::from_code(c).is_some());
+            if b.has_axes() || arc_words || bare_straight || bare_cycle {
                 let Some(m) = self.motion else {
                     return Err((b.axis_col.unwrap_or(b.first_col), ErrorKind::AxisWithoutMotion));
                 };
                 let mcol = explicit_motion.map_or(b.first_col, |(_, c)| c);
-                self.motion(m, b, g53.map(|(_, c)| c), mcol)?;
+                if let Motion::Cycle(c) = m {
+                    if let Some((_, col)) = g53 {
+                        return Err((col, ErrorKind::G53WithoutStraight));
+                    }
+                    self.cycle(c, b, previous != Some(m), mcol)?;
+                } else {
+                    self.motion(m, b, g53.map(|(_, c)| c), mcol)?;
+                }
             } else if let Some((_, col)) = g53 {
                 return Err((col, ErrorKind::G53WithoutStraight));
             }
@@ -232,7 +249,7 @@ impl Interpreter<'_> {
             self.emit(Canon::SelectPlane { plane: Plane::Xy });
         }
         self.absolute = true;
-        self.motion = Some(Motion::Feed);
+        self.set_motion_mode(Some(Motion::Feed));
         self.emit(Canon::SetFeedMode);
         self.emit(Canon::SetFeedRate { rate: 0.0 });
         self.feed = 0.0;

@@ -49,6 +49,7 @@ impl Interpreter<'_> {
             Some(Motion::Feed) => 10.0,
             Some(Motion::Cw) => 20.0,
             Some(Motion::Ccw) => 30.0,
+            Some(Motion::Cycle(c)) => f64::from(c.code()),
         };
         let plane = match self.plane {
             Plane::Xy => 170.0,
