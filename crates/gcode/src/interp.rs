@@ -112,6 +112,8 @@ pub struct Interpreter<'a> {
     percent_open: bool,
     seen_content: bool,
     calls: Vec<CallFrame>,
+    /// Iterations left of each running `repeat` loop, by its line and call depth.
+    repeats: HashMap<(usize, usize), u64>,
     params: Params,
     /// Reused buffers: the line being executed, the expression stack, the values of the
     /// line's assignments (target index, `None` for a named one) and EX writes.
@@ -166,6 +168,7 @@ impl<'a> Interpreter<'a> {
             percent_open: false,
             seen_content: false,
             calls: Vec::new(),
+            repeats: HashMap::new(),
             params: Params::default(),
             scratch: None,
             stack: Vec::new(),

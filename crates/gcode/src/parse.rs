@@ -68,6 +68,11 @@ pub(crate) enum OKind {
     Do,
     Break,
     Continue,
+    /// `o100 repeat [n]`: the lines up to `o100 endrepeat`, n times.
+    Repeat,
+    EndRepeat,
+    /// An O-word alone (`O1234`, a program number heading the file): nothing to do.
+    Heading,
 }
 
 /// An O-word line (`o100 if [#1 GT 2]`, `o<name> call [1] [2]`).
@@ -278,6 +283,9 @@ fn okind(kw: &[u8]) -> Option<OKind> {
         b"do" => OKind::Do,
         b"break" => OKind::Break,
         b"continue" => OKind::Continue,
+        b"repeat" => OKind::Repeat,
+        b"endrepeat" => OKind::EndRepeat,
+        b"" => OKind::Heading,
         _ => return None,
     })
 }
@@ -318,7 +326,7 @@ fn read_oword(cur: &mut Cursor) -> KResult<OWord> {
         .ok_or_else(|| (kcol, ErrorKind::OWord(format!("unknown O-word keyword '{}'", text(cur, kw)))))?;
     let mut args = Vec::new();
     match kind {
-        OKind::If | OKind::ElseIf | OKind::While => {
+        OKind::If | OKind::ElseIf | OKind::While | OKind::Repeat => {
             if cur.peek() != Some(b'[') {
                 let msg = format!("[condition] expected after {}", text(cur, kw));
                 return Err((cur.col(), ErrorKind::OWord(msg)));
