@@ -18,6 +18,11 @@ pub(crate) mod g {
     pub(crate) const G19: u16 = 190;
     pub(crate) const G20: u16 = 200;
     pub(crate) const G21: u16 = 210;
+    pub(crate) const G28: u16 = 280;
+    pub(crate) const G28_1: u16 = 281;
+    pub(crate) const G30: u16 = 300;
+    pub(crate) const G30_1: u16 = 301;
+    pub(crate) const G52: u16 = 520;
     pub(crate) const G53: u16 = 530;
     pub(crate) const G61: u16 = 610;
     pub(crate) const G61_1: u16 = 611;
@@ -48,6 +53,7 @@ pub(crate) mod g {
 fn g_group(code: u16) -> Option<usize> {
     Some(match code {
         g::G4 | g::G10 | g::G53 | g::G92 | g::G92_1 | g::G92_2 | g::G92_3 => 0,
+        g::G28 | g::G28_1 | g::G30 | g::G30_1 | g::G52 => 0,
         g::G0 | g::G1 | g::G2 | g::G3 | g::G80 => 1,
         g::G73 | g::G81 | g::G82 | g::G83 | g::G85 | g::G89 => 1,
         g::G17 | g::G18 | g::G19 => 2,

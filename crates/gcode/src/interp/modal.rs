@@ -145,6 +145,15 @@ impl Interpreter<'_> {
                     }
                     self.set_g92(new, G92Params::Save);
                 }
+                g::G28 | g::G30 => {
+                    axes_used = true;
+                    self.go_to_reference(code, b);
+                }
+                g::G28_1 | g::G30_1 => self.store_reference(code),
+                g::G52 => {
+                    axes_used = true;
+                    self.set_local_offset(b);
+                }
                 g::G92_1 => self.set_g92([0.0; 6], G92Params::Clear),
                 g::G92_2 => self.set_g92([0.0; 6], G92Params::Suspend),
                 g::G92_3 => {
@@ -273,7 +282,7 @@ impl Interpreter<'_> {
 
     /// Sets the G92 offsets to `new` (program units) and the saved offsets #5211-#5216 and
     /// their flag #5210 as LinuxCNC does for the code that asked (`params`).
-    fn set_g92(&mut self, new: Pose, params: G92Params) {
+    pub(super) fn set_g92(&mut self, new: Pose, params: G92Params) {
         // Keep the machine position: pos + g92 is invariant.
         for k in 0..6 {
             if let (Some(p), Some(o), Some(n)) = (self.pos.get_mut(k), self.g92.get(k), new.get(k)) {
@@ -301,7 +310,7 @@ impl Interpreter<'_> {
 
     /// Saved offsets are kept in the machine's (user) units, millimetres and degrees, as
     /// LinuxCNC keeps them in its configured units: the factor from program units for axis `k`.
-    fn user_units_per_program_unit(&self, k: usize) -> f64 {
+    pub(super) fn user_units_per_program_unit(&self, k: usize) -> f64 {
         if k < 3 {
             self.units.mm_per_unit()
         } else {
@@ -363,7 +372,7 @@ impl Interpreter<'_> {
 
 /// What a G92-family code does with the saved offsets #5211-#5216 and their flag #5210.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum G92Params {
+pub(super) enum G92Params {
     /// G92: the new offsets are saved, the flag set.
     Save,
     /// G92.1: offsets and saved values zero, the flag cleared.
