@@ -137,7 +137,7 @@ class Station:
         port = free_port()
         os.makedirs(SHOTS, exist_ok=True)
         self.log = open(os.path.join(SHOTS, "demo.log"), "w")
-        self.proc = subprocess.Popen([MOTUS_BIN, "demo", "--listen", f"127.0.0.1:{port}", "--realtime", "auto"],
+        self.proc = subprocess.Popen([MOTUS_BIN, "demo", "--listen", f"127.0.0.1:{port}"],
                                      stdout=subprocess.PIPE, stderr=self.log, text=True)
         self.started_here = True
         self.url = f"http://127.0.0.1:{port}"

@@ -26,7 +26,7 @@ fn demo_serves_the_whole_cell_moves_axes_runs_a_program_and_stops_everything() {
     let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
     let addr = format!("127.0.0.1:{port}");
     let mut child = Command::new(MOTUS)
-        .args(["demo", "--listen", &addr, "--realtime", "auto"])
+        .args(["demo", "--listen", &addr])
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
         .spawn()

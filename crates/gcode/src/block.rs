@@ -18,8 +18,24 @@ pub(crate) mod g {
     pub(crate) const G19: u16 = 190;
     pub(crate) const G20: u16 = 200;
     pub(crate) const G21: u16 = 210;
+    pub(crate) const G28: u16 = 280;
+    pub(crate) const G28_1: u16 = 281;
+    pub(crate) const G30: u16 = 300;
+    pub(crate) const G30_1: u16 = 301;
+    pub(crate) const G52: u16 = 520;
     pub(crate) const G53: u16 = 530;
+    pub(crate) const G61: u16 = 610;
+    pub(crate) const G61_1: u16 = 611;
+    pub(crate) const G64: u16 = 640;
+    pub(crate) const G73: u16 = 730;
     pub(crate) const G80: u16 = 800;
+    pub(crate) const G81: u16 = 810;
+    pub(crate) const G82: u16 = 820;
+    pub(crate) const G83: u16 = 830;
+    pub(crate) const G85: u16 = 850;
+    pub(crate) const G89: u16 = 890;
+    pub(crate) const G98: u16 = 980;
+    pub(crate) const G99: u16 = 990;
     pub(crate) const G90: u16 = 900;
     pub(crate) const G90_1: u16 = 901;
     pub(crate) const G91: u16 = 910;
@@ -37,13 +53,17 @@ pub(crate) mod g {
 fn g_group(code: u16) -> Option<usize> {
     Some(match code {
         g::G4 | g::G10 | g::G53 | g::G92 | g::G92_1 | g::G92_2 | g::G92_3 => 0,
+        g::G28 | g::G28_1 | g::G30 | g::G30_1 | g::G52 => 0,
         g::G0 | g::G1 | g::G2 | g::G3 | g::G80 => 1,
+        g::G73 | g::G81 | g::G82 | g::G83 | g::G85 | g::G89 => 1,
         g::G17 | g::G18 | g::G19 => 2,
         g::G90 | g::G91 => 3,
         g::G90_1 | g::G91_1 => 4,
         g::G93 | g::G94 | g::G95 => 5,
         g::G20 | g::G21 => 6,
+        g::G98 | g::G99 => 10,
         540 | 550 | 560 | 570 | 580 | 590 | 591 | 592 | 593 => 12,
+        g::G61 | g::G61_1 | g::G64 => 13,
         _ => return None,
     })
 }
@@ -61,8 +81,8 @@ fn m_group(m: u16) -> Option<usize> {
 /// One block, values evaluated.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Block {
-    /// Per modal group 0..=12: the code and its column.
-    pub(crate) g: [Option<(u16, u32)>; 13],
+    /// Per modal group 0..=13: the code and its column.
+    pub(crate) g: [Option<(u16, u32)>; 14],
     /// Standard M codes per group (4, 7, 8).
     pub(crate) m_stop: Option<u16>,
     pub(crate) m_spindle: Option<u16>,
@@ -78,6 +98,7 @@ pub(crate) struct Block {
     pub(crate) p: Option<f64>,
     pub(crate) r: Option<f64>,
     pub(crate) l: Option<f64>,
+    pub(crate) q: Option<f64>,
     /// Column of the first axis word (for error positions).
     pub(crate) axis_col: Option<u32>,
     /// Column of the motion word or of the first word.
@@ -174,6 +195,7 @@ pub(crate) fn read_block(b: &mut Block, line: &Line, params: &Params, stack: &mu
             b'P' => set(&mut b.p, b'P')?,
             b'R' => set(&mut b.r, b'R')?,
             b'L' => set(&mut b.l, b'L')?,
+            b'Q' => set(&mut b.q, b'Q')?,
             other => return Err((col, ErrorKind::UnsupportedLetter(char::from(other)))),
         }
     }

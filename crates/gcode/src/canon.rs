@@ -205,6 +205,20 @@ pub enum Canon {
         /// Seconds.
         seconds: f64,
     },
+    /// `SET_MOTION_CONTROL_MODE(...)`: how the path joins its moves (G61, G61.1, G64 P;
+    /// exact path around a canned cycle).
+    SetMotionControlMode {
+        /// The mode.
+        mode: MotionControl,
+        /// Path tolerance of [`MotionControl::Continuous`] (G64 P), program units; 0 = none.
+        tolerance: f64,
+    },
+    /// `SET_NAIVECAM_TOLERANCE(q)`: G64 Q, the tolerance within which the planner may join
+    /// collinear feeds (CAM output's short segments), program units.
+    SetNaivecamTolerance {
+        /// Tolerance.
+        tolerance: f64,
+    },
     /// `OPTIONAL_PROGRAM_STOP()` (M1).
     OptionalProgramStop,
     /// `PROGRAM_STOP()` (M0).
@@ -229,6 +243,17 @@ pub enum Canon {
         /// The typed value.
         value: ExValue,
     },
+}
+
+/// How the path joins its moves (LinuxCNC's `CANON_MOTION_MODE`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum MotionControl {
+    /// G61.1: stop at the end of every move.
+    ExactStop,
+    /// G61: follow the programmed path exactly (corners are corners).
+    ExactPath,
+    /// G64: blend corners, within a path tolerance when one is given.
+    Continuous,
 }
 
 /// A motion in machine coordinates: millimetres (A/B/C degrees), G5x and G92 offsets applied.

@@ -41,6 +41,46 @@ pub enum ErrorKind {
     /// A named parameter read before it was set.
     #[error("Named parameter #<{0}> not defined")]
     UndefinedNamedParameter(String),
+    /// A canned cycle outside the XY plane (G18/G19 cycles are not implemented).
+    #[error("Canned cycles are implemented in the XY plane (G17) only")]
+    CycleOutsideXy,
+    /// A rotary axis word in a canned-cycle block.
+    #[error("Cannot put an {0} in canned cycle")]
+    RotaryInCycle(char),
+    /// L below 1 in a canned-cycle block.
+    #[error("Cannot do zero repeats of cycle")]
+    CycleRepeats,
+    /// The first block of a canned cycle without its R word.
+    #[error("R clearance plane unspecified in cycle")]
+    CycleWithoutR,
+    /// A canned cycle with the feed rate still zero.
+    #[error("Cannot feed with zero feed rate")]
+    CycleZeroFeed,
+    /// The first block of a canned cycle without its Z word.
+    #[error("Z value unspecified in xy plane canned cycle")]
+    CycleWithoutZ,
+    /// The R plane below the cycle's bottom.
+    #[error("R less than z in cycle in xy plane")]
+    CycleRBelowZ,
+    /// The first G82/G89 block without its dwell.
+    #[error("Dwell time P word missing with G{0}")]
+    CycleWithoutP(u16),
+    /// The first G73/G83 block without its peck depth.
+    #[error("Q word missing with G{0}")]
+    CycleWithoutQ(u16),
+    /// A peck depth that is not positive.
+    #[error("Negative or zero q value used: {0}")]
+    CycleQNotPositive(f64),
+    /// One canned-cycle block would make more moves than the interpreter allows.
+    #[error("Canned cycle block would make more than {0} moves (L repeats x pecks)")]
+    CycleTooManyMoves(u64),
+    /// An assignment to one of LinuxCNC's read-only named parameters (`#<_feed>`, ...).
+    #[error("Cannot assign to read-only parameter #<{0}>")]
+    ReadOnlyNamedParameter(String),
+    /// An assignment to a read-only numbered parameter (tool data #5400-#5413, the current
+    /// position #5420-#5428).
+    #[error("Parameter is readonly: #{0}")]
+    ReadOnlyParameter(usize),
     /// A value that must be an integer is not one.
     #[error("Non-integer value for integer: {0}")]
     NonInteger(f64),

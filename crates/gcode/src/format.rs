@@ -8,7 +8,7 @@
 
 use std::fmt::Write;
 
-use crate::canon::{Canon, CanonCall, ExValue, MSync, Plane, Units};
+use crate::canon::{Canon, CanonCall, ExValue, MSync, MotionControl, Plane, Units};
 
 /// How numbers are printed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -171,6 +171,24 @@ pub fn write_canon(o: &mut String, c: &Canon, p: Precision) {
         Canon::Dwell { seconds } => {
             o.push_str("DWELL(");
             num(o, *seconds, p);
+            o.push(')');
+        }
+        Canon::SetMotionControlMode { mode, tolerance } => match mode {
+            MotionControl::ExactStop => o.push_str("SET_MOTION_CONTROL_MODE(CANON_EXACT_STOP)"),
+            MotionControl::ExactPath => o.push_str("SET_MOTION_CONTROL_MODE(CANON_EXACT_PATH)"),
+            MotionControl::Continuous => {
+                o.push_str("SET_MOTION_CONTROL_MODE(CANON_CONTINUOUS, ");
+                // rs274 prints this tolerance with six decimals.
+                let _ = match p {
+                    Precision::Full => write!(o, "{tolerance}"),
+                    Precision::Rs274 => write!(o, "{tolerance:.6}"),
+                };
+                o.push(')');
+            }
+        },
+        Canon::SetNaivecamTolerance { tolerance } => {
+            o.push_str("SET_NAIVECAM_TOLERANCE(");
+            num(o, *tolerance, p);
             o.push(')');
         }
         Canon::OptionalProgramStop => o.push_str("OPTIONAL_PROGRAM_STOP()"),

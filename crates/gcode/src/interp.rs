@@ -3,16 +3,22 @@
 //!
 //! Order within a block: O-word, comment/message, parameter assignments (all values on a
 //! line are read first, as in LinuxCNC), `EX` writes, feed mode (G94), F, S, M3/M4/M5,
-//! M7/M8/M9, the seed's M-functions, G4, G17-G19, G20/G21, G54-G59.3, G90/G91,
-//! G90.1/G91.1, G10/G92.x, motion (G0-G3, with G53), M0/M1/M2/M30.
+//! M7/M8/M9, the seed's M-functions, G4, G17-G19, G20/G21, G54-G59.3, G61/G61.1/G64,
+//! G90/G91, G90.1/G91.1, G98/G99, G10/G28/G30/G52/G92.x, motion (G0-G3 with G53, canned cycles
+//! G73/G81/G82/G83/G85/G89, G80), M0/M1/M2/M30.
 //!
-//! Submodules: `modal` (a block's modal changes), `motion` (moves and arcs), `oword`
-//! (O-word control flow). One line at a time is parsed into a reused [`Line`]; only
+//! Submodules: `modal` (a block's modal changes), `motion` (moves and arcs), `cycles`
+//! (canned cycles and path control), `reference` (G28/G30, G52), `oword`
+//! (O-word control flow), `system_params` (LinuxCNC's read-only parameters and the
+//! `(DEBUG,...)` text). One line at a time is parsed into a reused [`Line`]; only
 //! O-word lines keep their parse (loops and calls come back to them).
 
+mod cycles;
 mod modal;
 mod motion;
 mod oword;
+mod reference;
+mod system_params;
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -23,7 +29,7 @@ use self::oword::{index_owords, is_oword_line, CallFrame, OLine};
 use crate::block::{read_block, Block};
 use crate::canon::{Canon, CanonCall, ExArray, ExValue, MachineMove, Plane, Pose, Units};
 use crate::error::{ErrorKind, GcodeError, KResult};
-use crate::params::{param_index, Params};
+use crate::params::{self, param_index, Params};
 use crate::parse::{Line, Remark, Target};
 
 /// Interpreter settings.
@@ -107,6 +113,8 @@ pub struct Interpreter<'a> {
     percent_open: bool,
     seen_content: bool,
     calls: Vec<CallFrame>,
+    /// Iterations left of each running `repeat` loop, by its line and call depth.
+    repeats: HashMap<(usize, usize), u64>,
     params: Params,
     /// Reused buffers: the line being executed, the expression stack, the values of the
     /// line's assignments (target index, `None` for a named one) and EX writes.
@@ -126,6 +134,15 @@ pub struct Interpreter<'a> {
     coord: usize,
     origins: [Pose; 9],
     g92: Pose,
+    /// Canned cycles' sticky words and levels, and the path control in force.
+    cycles: cycles::CycleState,
+    path: cycles::PathControl,
+    /// The last S word, and the spindle (1 clockwise, -1 counter-clockwise, 0 stopped) and
+    /// coolant states, for LinuxCNC's `#<_rpm>`, `#<_spindle_on>`, `#<_mist>`...
+    rpm: f64,
+    spindle: i8,
+    mist: bool,
+    flood: bool,
     cur_line: u32,
     cur_n: Option<u32>,
 }
@@ -152,6 +169,7 @@ impl<'a> Interpreter<'a> {
             percent_open: false,
             seen_content: false,
             calls: Vec::new(),
+            repeats: HashMap::new(),
             params: Params::default(),
             scratch: None,
             stack: Vec::new(),
@@ -168,9 +186,17 @@ impl<'a> Interpreter<'a> {
             coord: 0,
             origins: [[0.0; 6]; 9],
             g92: [0.0; 6],
+            cycles: cycles::CycleState::default(),
+            path: cycles::PathControl::default(),
+            rpm: 0.0,
+            spindle: 0,
+            mist: false,
+            flood: false,
             cur_line: 0,
             cur_n: None,
         };
+        // G54 is active from the start (#5220 = 1, as in LinuxCNC).
+        it.params.set(5220, 1.0);
         it.emit(Canon::UseLengthUnits { units: Units::Mm });
         it.emit(Canon::SetG5xOffset { index: 1, offset: [0.0; 6] });
         it.emit(Canon::SetG92Offset { offset: [0.0; 6] });
@@ -265,6 +291,7 @@ impl<'a> Interpreter<'a> {
     fn execute(&mut self, line: &Line, text: &str) -> KResult<()> {
         let here = self.pc;
         self.pc += 1;
+        self.publish_system_params();
         if line.percent {
             if self.seen_content || self.percent_open {
                 self.done = true;
@@ -293,9 +320,19 @@ impl<'a> Interpreter<'a> {
             let target = match a.target {
                 Target::Numbered(ix) => {
                     let ix = line.eval(&self.params, &mut self.stack, ix, a.col)?;
-                    Some(param_index(ix).map_err(|k| (a.col, k))?)
+                    let ix = param_index(ix).map_err(|k| (a.col, k))?;
+                    if params::is_read_only(ix) {
+                        return Err((a.col, ErrorKind::ReadOnlyParameter(ix)));
+                    }
+                    Some(ix)
                 }
-                Target::Named(..) => None,
+                Target::Named(s, e) => {
+                    let name = line.name(s, e);
+                    if params::system_index(name).is_some() {
+                        return Err((a.col, ErrorKind::ReadOnlyNamedParameter(name.to_owned())));
+                    }
+                    None
+                }
             };
             self.assigned.push((target, v));
         }
@@ -314,6 +351,16 @@ impl<'a> Interpreter<'a> {
         match line.remark(text) {
             Some(Remark::Comment(t)) => self.emit(Canon::Comment { text: t.to_owned() }),
             Some(Remark::Message(t)) => self.emit(Canon::Message { text: t.to_owned() }),
+            // LinuxCNC shows a DEBUG text as a message and prints a PRINT text on its
+            // console: here a comment, both with the parameters' values in them.
+            Some(Remark::Debug(t)) => {
+                let text = self.substitute_params(t);
+                self.emit(Canon::Message { text });
+            }
+            Some(Remark::Print(t)) => {
+                let text = self.substitute_params(t);
+                self.emit(Canon::Comment { text });
+            }
             None => {}
         }
         for (k, w) in line.ex.iter().enumerate() {

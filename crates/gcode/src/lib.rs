@@ -11,7 +11,22 @@
 //!   canonical stream uses its call names, argument order and coordinate conventions
 //!   (see [`canon`]). Differences: interpreter-generated `COMMENT("interpreter: ...")`
 //!   lines and `ON_RESET()` are not emitted; unsupported codes (cutter compensation,
-//!   tool length offsets, canned cycles, G93/G95, XY rotation, U/V/W) are errors.
+//!   tool length offsets, G93/G95, XY rotation, U/V/W, canned cycles outside G17) are
+//!   errors.
+//! * Canned cycles G73, G81, G82, G83, G85, G89 (G98/G99, L repeats, sticky words, G80)
+//!   and path control G61, G61.1, G64 P Q (`SET_MOTION_CONTROL_MODE`,
+//!   `SET_NAIVECAM_TOLERANCE`) as LinuxCNC emits them; one cycle block makes at most
+//!   100,000 moves (LinuxCNC has no bound).
+//! * Parameters as LinuxCNC 2.9 keeps them: the current position #5420-#5428 and the
+//!   predefined named parameters (`#<_x>`, `#<_abs_x>`, `#<_feed>`, `#<_motion_mode>`,
+//!   `#<_coord_system>`, ...: the list is `params::SYSTEM_NAMES`) are set before each line
+//!   is read; they and the tool data #5400-#5413 are read-only (an assignment is an error).
+//!   #5220 is 1 (G54) from the start. G92 saves its offsets in #5211-#5216 with the flag
+//!   #5210, G92.1 clears both, G92.2 clears the flag only (G92.3 brings them back). Saved
+//!   offsets are in millimetres, the machine's units (the standalone `rs274` keeps them in
+//!   inches: a program that reads #5211 directly sees 25.4 times its value here).
+//! * `(DEBUG,text)` is a message and `(PRINT,text)` a comment, each with the values of the
+//!   parameters named in `text` (six decimals, `######` for one not defined).
 //! * Seed additions: every M number 0..=1023 other than M0-M5, M7-M9, M30 is an
 //!   M-function ([`Canon::MFunction`], synchronous unless listed in
 //!   [`InterpreterConfig::async_m_functions`]), executed before the block's motion;
@@ -34,7 +49,9 @@ mod params;
 mod parse;
 mod value;
 
-pub use canon::{ArcFeed, Canon, CanonCall, ExArray, ExValue, MSync, MachineMove, Plane, Pose, Units};
+pub use canon::{
+    ArcFeed, Canon, CanonCall, ExArray, ExValue, MSync, MachineMove, MotionControl, Plane, Pose, Units,
+};
 pub use error::{ErrorKind, GcodeError};
 pub use format::{format_canon, format_line, write_canon, write_line, Precision};
 pub use interp::{interpret, interpret_with, CancelFlag, Interpreter, InterpreterConfig};

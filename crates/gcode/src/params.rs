@@ -17,11 +17,39 @@ pub(crate) struct Frame {
     pub(crate) named: HashMap<String, f64>,
 }
 
+/// LinuxCNC's predefined read-only named parameters this interpreter keeps, in the order of
+/// [`Params::system`] (their values are published before each line is read:
+/// `interp/system_params.rs`).
+#[rustfmt::skip]
+pub(crate) const SYSTEM_NAMES: [&str; 50] = [
+    "_x", "_y", "_z", "_a", "_b", "_c", "_u", "_v", "_w",
+    "_abs_x", "_abs_y", "_abs_z", "_abs_a", "_abs_b", "_abs_c", "_abs_u", "_abs_v", "_abs_w",
+    "_feed", "_rpm", "_line", "_motion_mode", "_plane", "_coord_system",
+    "_metric", "_imperial", "_absolute", "_incremental", "_ijk_absolute_mode",
+    "_inverse_time", "_units_per_minute", "_units_per_rev", "_ccomp",
+    "_lathe_diameter_mode", "_lathe_radius_mode", "_spindle_rpm_mode", "_spindle_css_mode",
+    "_speed_override", "_feed_override", "_adaptive_feed", "_feed_hold",
+    "_spindle_on", "_spindle_cw", "_mist", "_flood",
+    "_vmajor", "_vminor", "_call_level", "_task", "_remap_level",
+];
+
+/// Where `name` (lower case) is in [`SYSTEM_NAMES`].
+pub(crate) fn system_index(name: &str) -> Option<usize> {
+    SYSTEM_NAMES.iter().position(|n| *n == name)
+}
+
+/// Numbered parameters a program cannot assign (LinuxCNC: tool data, current position).
+pub(crate) fn is_read_only(idx: usize) -> bool {
+    (5400..=5413).contains(&idx) || (5420..=5428).contains(&idx)
+}
+
 /// All parameters: numbered (global, except `#1..#30` inside a call), named locals, globals.
 #[derive(Debug, Clone)]
 pub(crate) struct Params {
     numbered: Vec<f64>,
     globals: HashMap<String, f64>,
+    /// The values of [`SYSTEM_NAMES`].
+    pub(crate) system: [f64; SYSTEM_NAMES.len()],
     /// `frames[0]` is the main program's frame (its `#1..#30` live in `numbered`).
     pub(crate) frames: Vec<Frame>,
 }
@@ -31,6 +59,7 @@ impl Default for Params {
         Self {
             numbered: vec![0.0; MAX_PARAMETER + 1],
             globals: HashMap::new(),
+            system: [0.0; SYSTEM_NAMES.len()],
             frames: vec![Frame::default()],
         }
     }
@@ -78,6 +107,9 @@ impl Params {
     /// Reads a named parameter.
     pub(crate) fn get_named(&self, name: &str) -> Option<f64> {
         if name.starts_with('_') {
+            if let Some(i) = system_index(name) {
+                return self.system.get(i).copied();
+            }
             self.globals.get(name).copied()
         } else {
             self.frames.last().and_then(|f| f.named.get(name).copied())

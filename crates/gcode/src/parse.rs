@@ -68,6 +68,11 @@ pub(crate) enum OKind {
     Do,
     Break,
     Continue,
+    /// `o100 repeat [n]`: the lines up to `o100 endrepeat`, n times.
+    Repeat,
+    EndRepeat,
+    /// An O-word alone (`O1234`, a program number heading the file): nothing to do.
+    Heading,
 }
 
 /// An O-word line (`o100 if [#1 GT 2]`, `o<name> call [1] [2]`).
@@ -85,6 +90,10 @@ pub(crate) struct OWord {
 pub(crate) enum Remark<'a> {
     Comment(&'a str),
     Message(&'a str),
+    /// `(DEBUG,text)`: a message with the parameters in `text` substituted.
+    Debug(&'a str),
+    /// `(PRINT,text)`: printed with the parameters in `text` substituted.
+    Print(&'a str),
 }
 
 /// One parsed program line (its buffers are reused from line to line).
@@ -131,8 +140,13 @@ impl Line {
     pub(crate) fn remark<'t>(&self, text: &'t str) -> Option<Remark<'t>> {
         let body = self.comment.and_then(|(a, b)| text.get(a..b))?;
         let t = body.trim_start();
-        Some(if t.get(..4).is_some_and(|p| p.eq_ignore_ascii_case("msg,")) {
+        let keyword = |k: &str| t.get(..k.len()).is_some_and(|p| p.eq_ignore_ascii_case(k));
+        Some(if keyword("msg,") {
             Remark::Message(t.get(4..).unwrap_or(""))
+        } else if keyword("debug,") {
+            Remark::Debug(t.get(6..).unwrap_or(""))
+        } else if keyword("print,") {
+            Remark::Print(t.get(6..).unwrap_or(""))
         } else {
             Remark::Comment(body)
         })
@@ -269,6 +283,9 @@ fn okind(kw: &[u8]) -> Option<OKind> {
         b"do" => OKind::Do,
         b"break" => OKind::Break,
         b"continue" => OKind::Continue,
+        b"repeat" => OKind::Repeat,
+        b"endrepeat" => OKind::EndRepeat,
+        b"" => OKind::Heading,
         _ => return None,
     })
 }
@@ -309,7 +326,7 @@ fn read_oword(cur: &mut Cursor) -> KResult<OWord> {
         .ok_or_else(|| (kcol, ErrorKind::OWord(format!("unknown O-word keyword '{}'", text(cur, kw)))))?;
     let mut args = Vec::new();
     match kind {
-        OKind::If | OKind::ElseIf | OKind::While => {
+        OKind::If | OKind::ElseIf | OKind::While | OKind::Repeat => {
             if cur.peek() != Some(b'[') {
                 let msg = format!("[condition] expected after {}", text(cur, kw));
                 return Err((cur.col(), ErrorKind::OWord(msg)));

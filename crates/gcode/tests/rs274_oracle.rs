@@ -86,7 +86,8 @@ fn keep(name: &str) -> bool {
 fn rs274_calls(stdout: &str) -> Vec<(String, Vec<String>)> {
     stdout
         .lines()
-        .filter(|l| l.len() > 13)
+        // Canonical calls only: a program's (PRINT,...) text is printed between them.
+        .filter(|l| l.len() > 13 && l.get(5..7) == Some(" N") && l.ends_with(')'))
         .map(|l| split_call(l[13..].trim()))
         .filter(|(n, _)| keep(n))
         .collect()
@@ -170,7 +171,13 @@ fn canon_matches_gcode_module_within_1e6_mm() {
         let out = run_python(&prog);
         let theirs: Vec<(String, Vec<f64>)> = out
             .lines()
-            .filter(|l| !l.starts_with("result") && !l.starts_with("message") && !l.starts_with("plane"))
+            // Motion and offset calls only (not result/message/plane, nor a program's
+            // (PRINT,...) text, which the module prints on the same output).
+            .filter(|l| {
+                l.split_whitespace()
+                    .next()
+                    .is_some_and(|n| ["traverse", "feed", "arc", "g5x", "g92", "dwell"].contains(&n))
+            })
             .map(|l| {
                 let mut it = l.split_whitespace();
                 let name = it.next().unwrap().to_owned();

@@ -2,6 +2,7 @@
 //! spindle, coolant, the seed's M-functions, dwell, plane, units, coordinate system,
 //! distance modes, G10/G92, motion, stops and the program-end reset.
 
+use super::cycles::Cycle;
 use super::motion::Motion;
 use super::{origin_param, Interpreter};
 use crate::block::{g, Block};
@@ -33,18 +34,36 @@ impl Interpreter<'_> {
             if s < 0.0 {
                 return Err((b.first_col, ErrorKind::NegativeSpindle));
             }
+            self.rpm = s;
             self.emit(Canon::SetSpindleSpeed { rpm: s });
         }
         match b.m_spindle {
-            Some(3) => self.emit(Canon::StartSpindleClockwise),
-            Some(4) => self.emit(Canon::StartSpindleCounterclockwise),
-            Some(_) => self.emit(Canon::StopSpindleTurning),
+            Some(3) => {
+                self.spindle = 1;
+                self.emit(Canon::StartSpindleClockwise);
+            }
+            Some(4) => {
+                self.spindle = -1;
+                self.emit(Canon::StartSpindleCounterclockwise);
+            }
+            Some(_) => {
+                self.spindle = 0;
+                self.emit(Canon::StopSpindleTurning);
+            }
             None => {}
         }
         match b.m_coolant {
-            Some(7) => self.emit(Canon::MistOn),
-            Some(8) => self.emit(Canon::FloodOn),
+            Some(7) => {
+                self.mist = true;
+                self.emit(Canon::MistOn);
+            }
+            Some(8) => {
+                self.flood = true;
+                self.emit(Canon::FloodOn);
+            }
             Some(_) => {
+                self.mist = false;
+                self.flood = false;
                 self.emit(Canon::MistOff);
                 self.emit(Canon::FloodOff);
             }
@@ -91,11 +110,17 @@ impl Interpreter<'_> {
                 self.emit(Canon::SetXyRotation { degrees: 0.0 });
             }
         }
+        if let Some((code, _)) = gcode(13) {
+            self.set_path_control(code, b);
+        }
         if let Some((code, _)) = gcode(3) {
             self.absolute = code == g::G90;
         }
         if let Some((code, _)) = gcode(4) {
             self.arc_absolute = code == g::G90_1;
+        }
+        if let Some((code, _)) = gcode(10) {
+            self.cycles.retract_to_initial = code == g::G98;
         }
         let nonmodal = gcode(0);
         let mut axes_used = false;
@@ -118,15 +143,25 @@ impl Interpreter<'_> {
                             *slot = p + *slot - v;
                         }
                     }
-                    self.set_g92(new);
+                    self.set_g92(new, G92Params::Save);
                 }
-                g::G92_1 | g::G92_2 => self.set_g92([0.0; 6]),
+                g::G28 | g::G30 => {
+                    axes_used = true;
+                    self.go_to_reference(code, b);
+                }
+                g::G28_1 | g::G30_1 => self.store_reference(code),
+                g::G52 => {
+                    axes_used = true;
+                    self.set_local_offset(b);
+                }
+                g::G92_1 => self.set_g92([0.0; 6], G92Params::Clear),
+                g::G92_2 => self.set_g92([0.0; 6], G92Params::Suspend),
                 g::G92_3 => {
                     let mut new = [0.0; 6];
                     for (k, slot) in new.iter_mut().enumerate() {
-                        *slot = self.params.get(5211 + k);
+                        *slot = self.params.get(5211 + k) / self.user_units_per_program_unit(k);
                     }
-                    self.set_g92(new);
+                    self.set_g92(new, G92Params::Restore);
                 }
                 _ => {}
             }
@@ -135,14 +170,16 @@ impl Interpreter<'_> {
         if axes_used && explicit_motion.is_some_and(|(c, _)| c != g::G80) {
             return Err((b.first_col, ErrorKind::TwoAxisUsers));
         }
+        let previous = self.motion;
         if let Some((code, _)) = explicit_motion {
-            self.motion = match code {
+            let m = match code {
                 g::G0 => Some(Motion::Rapid),
                 g::G1 => Some(Motion::Feed),
                 g::G2 => Some(Motion::Cw),
                 g::G3 => Some(Motion::Ccw),
-                _ => None,
+                other => Cycle::from_code(other).map(Motion::Cycle),
             };
+            self.set_motion_mode(m);
         }
         let g53 = nonmodal.filter(|(c, _)| *c == g::G53);
         if !axes_used {
@@ -150,12 +187,20 @@ impl Interpreter<'_> {
                 && (b.r.is_some() || b.ijk.iter().any(Option::is_some));
             // LinuxCNC: an explicit G0/G1 without axis words still moves (to where it is).
             let bare_straight = explicit_motion.is_some_and(|(c, _)| c == g::G0 || c == g::G1);
-            if b.has_axes() || arc_words || bare_straight {
+            let bare_cycle = explicit_motion.is_some_and(|(c, _)| Cycle::from_code(c).is_some());
+            if b.has_axes() || arc_words || bare_straight || bare_cycle {
                 let Some(m) = self.motion else {
                     return Err((b.axis_col.unwrap_or(b.first_col), ErrorKind::AxisWithoutMotion));
                 };
                 let mcol = explicit_motion.map_or(b.first_col, |(_, c)| c);
-                self.motion(m, b, g53.map(|(_, c)| c), mcol)?;
+                if let Motion::Cycle(c) = m {
+                    if let Some((_, col)) = g53 {
+                        return Err((col, ErrorKind::G53WithoutStraight));
+                    }
+                    self.cycle(c, b, previous != Some(m), mcol)?;
+                } else {
+                    self.motion(m, b, g53.map(|(_, c)| c), mcol)?;
+                }
             } else if let Some((_, col)) = g53 {
                 return Err((col, ErrorKind::G53WithoutStraight));
             }
@@ -213,13 +258,21 @@ impl Interpreter<'_> {
             self.emit(Canon::SelectPlane { plane: Plane::Xy });
         }
         self.absolute = true;
-        self.motion = Some(Motion::Feed);
+        self.set_motion_mode(Some(Motion::Feed));
         self.emit(Canon::SetFeedMode);
         self.emit(Canon::SetFeedRate { rate: 0.0 });
         self.feed = 0.0;
         self.feed_mm = 0.0;
+        self.spindle = 0;
         self.emit(Canon::StopSpindleTurning);
         self.emit(Canon::SetSpindleMode);
+        // Coolant that is on is turned off (LinuxCNC: mist, then flood).
+        if std::mem::take(&mut self.mist) {
+            self.emit(Canon::MistOff);
+        }
+        if std::mem::take(&mut self.flood) {
+            self.emit(Canon::FloodOff);
+        }
         if pallet {
             self.emit(Canon::PalletShuttle);
         }
@@ -227,7 +280,9 @@ impl Interpreter<'_> {
         self.done = true;
     }
 
-    fn set_g92(&mut self, new: Pose) {
+    /// Sets the G92 offsets to `new` (program units) and the saved offsets #5211-#5216 and
+    /// their flag #5210 as LinuxCNC does for the code that asked (`params`).
+    pub(super) fn set_g92(&mut self, new: Pose, params: G92Params) {
         // Keep the machine position: pos + g92 is invariant.
         for k in 0..6 {
             if let (Some(p), Some(o), Some(n)) = (self.pos.get_mut(k), self.g92.get(k), new.get(k)) {
@@ -235,11 +290,32 @@ impl Interpreter<'_> {
             }
         }
         self.g92 = new;
-        for (k, v) in new.iter().enumerate() {
-            self.params.set(5211 + k, *v);
+        match params {
+            G92Params::Save => {
+                for (k, v) in new.iter().enumerate() {
+                    self.params.set(5211 + k, v * self.user_units_per_program_unit(k));
+                }
+            }
+            G92Params::Clear => {
+                for k in 0..6 {
+                    self.params.set(5211 + k, 0.0);
+                }
+            }
+            G92Params::Suspend | G92Params::Restore => {}
         }
-        self.params.set(5210, if new.iter().any(|v| *v != 0.0) { 1.0 } else { 0.0 });
+        let applied = matches!(params, G92Params::Save | G92Params::Restore);
+        self.params.set(5210, if applied { 1.0 } else { 0.0 });
         self.emit(Canon::SetG92Offset { offset: new });
+    }
+
+    /// Saved offsets are kept in the machine's (user) units, millimetres and degrees, as
+    /// LinuxCNC keeps them in its configured units: the factor from program units for axis `k`.
+    pub(super) fn user_units_per_program_unit(&self, k: usize) -> f64 {
+        if k < 3 {
+            self.units.mm_per_unit()
+        } else {
+            1.0
+        }
     }
 
     fn set_origin(&mut self, k: usize, new: Pose) {
@@ -292,4 +368,17 @@ impl Interpreter<'_> {
         }
         self.emit(Canon::UseLengthUnits { units: u });
     }
+}
+
+/// What a G92-family code does with the saved offsets #5211-#5216 and their flag #5210.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum G92Params {
+    /// G92: the new offsets are saved, the flag set.
+    Save,
+    /// G92.1: offsets and saved values zero, the flag cleared.
+    Clear,
+    /// G92.2: offsets zero, the saved values kept for G92.3, the flag cleared.
+    Suspend,
+    /// G92.3: the saved values applied again, the flag set.
+    Restore,
 }

@@ -1,6 +1,7 @@
 //! Motion: straight moves (G0/G1, G53) and arcs (G2/G3, I/J/K or R form, helices and
 //! turns), emitted in program units with the same move in machine millimetres.
 
+use super::cycles::Cycle;
 use super::Interpreter;
 use crate::arc;
 use crate::block::Block;
@@ -14,6 +15,8 @@ pub(super) enum Motion {
     Feed,
     Cw,
     Ccw,
+    /// A canned cycle (`cycles.rs`).
+    Cycle(Cycle),
 }
 
 impl Interpreter<'_> {
@@ -75,6 +78,8 @@ impl Interpreter<'_> {
                     MachineMove::Feed { start: ms, end: me, feed: self.feed_mm },
                 );
             }
+            // Canned cycles are executed by `cycles.rs`, never here.
+            Motion::Cycle(_) => return Ok(()),
             Motion::Cw | Motion::Ccw => {
                 let cw = m == Motion::Cw;
                 if self.feed == 0.0 {

@@ -1,5 +1,6 @@
 //! O-word control flow: the pre-scan linking the lines of one O name, subroutine calls
-//! and returns, if/elseif/else, while, do-while, break and continue.
+//! and returns, if/elseif/else, while, do-while, repeat, break and continue, and a
+//! program-number heading (`O1234` alone).
 
 use std::collections::HashMap;
 
@@ -78,6 +79,11 @@ pub(super) fn index_owords(lines: &[&str]) -> (HashMap<usize, OLine>, HashMap<St
 fn cond(params: &Params, stack: &mut Vec<f64>, line: &Line, o: &OWord) -> KResult<bool> {
     let e = o.args.first().ok_or((o.col, ErrorKind::OWord("condition missing".into())))?;
     Ok(line.eval(params, stack, *e, o.col)? != 0.0)
+}
+
+/// The bracketed argument of an O-word (`repeat [n]`).
+fn cond_arg(o: &OWord) -> KResult<Val> {
+    o.args.first().copied().ok_or((o.col, ErrorKind::OWord("[count] missing".into())))
 }
 
 fn oerr(col: u32, msg: &str) -> (u32, ErrorKind) {
@@ -184,7 +190,35 @@ impl Interpreter<'_> {
                     self.chain_next(here, &[OKind::EndIf]).ok_or_else(|| oerr(col, "else without endif"))?;
                 self.pc = end + 1;
             }
-            OKind::EndIf | OKind::Do => {}
+            OKind::EndIf | OKind::Do | OKind::Heading => {}
+            OKind::Repeat => {
+                let n = line.eval(&self.params, &mut self.stack, cond_arg(o)?, col)?;
+                let n = crate::expr::round(n);
+                if n >= 1.0 {
+                    // At least once; the step budget bounds a huge count.
+                    self.repeats.insert((here, self.calls.len()), n.min(u64::MAX as f64) as u64 - 1);
+                } else {
+                    let end = self
+                        .chain_next(here, &[OKind::EndRepeat])
+                        .ok_or_else(|| oerr(col, "repeat without endrepeat"))?;
+                    self.pc = end + 1;
+                }
+            }
+            OKind::EndRepeat => {
+                let head = self
+                    .chain_prev(here, &[OKind::Repeat])
+                    .ok_or_else(|| oerr(col, "endrepeat without repeat"))?;
+                let key = (head, self.calls.len());
+                match self.repeats.get_mut(&key) {
+                    Some(left) if *left > 0 => {
+                        *left -= 1;
+                        self.pc = head + 1;
+                    }
+                    _ => {
+                        self.repeats.remove(&key);
+                    }
+                }
+            }
             OKind::While => {
                 if let Some(d) = self.is_do_tail(here) {
                     if cond(&self.params, &mut self.stack, line, o)? {
