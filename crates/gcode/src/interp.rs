@@ -291,7 +291,10 @@ impl<'a> Interpreter<'a> {
     fn execute(&mut self, line: &Line, text: &str) -> KResult<()> {
         let here = self.pc;
         self.pc += 1;
-        self.publish_system_params();
+        // Only a line that names a parameter can read them: the others skip the work.
+        if text.as_bytes().contains(&b'#') {
+            self.publish_system_params();
+        }
         if line.percent {
             if self.seen_content || self.percent_open {
                 self.done = true;
