@@ -27,6 +27,9 @@ pub struct GcodeFileArgs {
     /// M-functions that do not pause the program (default: all are synchronous).
     #[arg(long, value_delimiter = ',')]
     pub async_m: Vec<u16>,
+    /// The tool table for T, M6 and G43 (LinuxCNC's `.tbl` format, lengths in mm).
+    #[arg(long)]
+    pub tool_table: Option<PathBuf>,
 }
 
 /// Options of `motus gcode canon`.

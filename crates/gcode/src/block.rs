@@ -23,6 +23,9 @@ pub(crate) mod g {
     pub(crate) const G30: u16 = 300;
     pub(crate) const G30_1: u16 = 301;
     pub(crate) const G52: u16 = 520;
+    pub(crate) const G43: u16 = 430;
+    pub(crate) const G43_1: u16 = 431;
+    pub(crate) const G49: u16 = 490;
     pub(crate) const G53: u16 = 530;
     pub(crate) const G61: u16 = 610;
     pub(crate) const G61_1: u16 = 611;
@@ -61,6 +64,7 @@ fn g_group(code: u16) -> Option<usize> {
         g::G90_1 | g::G91_1 => 4,
         g::G93 | g::G94 | g::G95 => 5,
         g::G20 | g::G21 => 6,
+        g::G43 | g::G43_1 | g::G49 => 8,
         g::G98 | g::G99 => 10,
         540 | 550 | 560 | 570 | 580 | 590 | 591 | 592 | 593 => 12,
         g::G61 | g::G61_1 | g::G64 => 13,
@@ -68,10 +72,12 @@ fn g_group(code: u16) -> Option<usize> {
     })
 }
 
-/// M group: 4 = stopping, 7 = spindle, 8 = coolant; `None` = the seed's M-functions.
+/// M group: 4 = stopping, 6 = tool change, 7 = spindle, 8 = coolant; `None` = the seed's
+/// M-functions.
 fn m_group(m: u16) -> Option<usize> {
     match m {
         0 | 1 | 2 | 30 => Some(4),
+        6 => Some(6),
         3..=5 => Some(7),
         7..=9 => Some(8),
         _ => None,
@@ -85,6 +91,8 @@ pub(crate) struct Block {
     pub(crate) g: [Option<(u16, u32)>; 14],
     /// Standard M codes per group (4, 7, 8).
     pub(crate) m_stop: Option<u16>,
+    /// M6.
+    pub(crate) m_tool: Option<u16>,
     pub(crate) m_spindle: Option<u16>,
     pub(crate) m_coolant: Option<u16>,
     /// The seed's M-functions in order of appearance, with columns.
@@ -99,6 +107,8 @@ pub(crate) struct Block {
     pub(crate) r: Option<f64>,
     pub(crate) l: Option<f64>,
     pub(crate) q: Option<f64>,
+    pub(crate) t: Option<f64>,
+    pub(crate) h: Option<f64>,
     /// Column of the first axis word (for error positions).
     pub(crate) axis_col: Option<u32>,
     /// Column of the motion word or of the first word.
@@ -158,6 +168,7 @@ pub(crate) fn read_block(b: &mut Block, line: &Line, params: &Params, stack: &mu
                     u16::try_from(m).ok().filter(|&m| m <= 1023).ok_or((col, ErrorKind::UnsupportedM(v)))?;
                 let slot = match m_group(m) {
                     Some(4) => &mut b.m_stop,
+                    Some(6) => &mut b.m_tool,
                     Some(7) => &mut b.m_spindle,
                     Some(_) => &mut b.m_coolant,
                     None => {
@@ -196,6 +207,8 @@ pub(crate) fn read_block(b: &mut Block, line: &Line, params: &Params, stack: &mu
             b'R' => set(&mut b.r, b'R')?,
             b'L' => set(&mut b.l, b'L')?,
             b'Q' => set(&mut b.q, b'Q')?,
+            b'T' => set(&mut b.t, b'T')?,
+            b'H' => set(&mut b.h, b'H')?,
             other => return Err((col, ErrorKind::UnsupportedLetter(char::from(other)))),
         }
     }

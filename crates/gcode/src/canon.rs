@@ -219,6 +219,24 @@ pub enum Canon {
         /// Tolerance.
         tolerance: f64,
     },
+    /// `SELECT_TOOL(t)`: the T word (the changer may prepare it).
+    SelectTool {
+        /// Tool number.
+        tool: u32,
+    },
+    /// `START_CHANGE()`: M6 begins.
+    StartChange,
+    /// `CHANGE_TOOL(p)`: M6, the selected tool into the spindle; `p` is its place in the
+    /// tool table (1-based; 0 = no tool).
+    ChangeTool {
+        /// Place in the table.
+        index: usize,
+    },
+    /// `USE_TOOL_LENGTH_OFFSET(x y z, a b c, u v w)`: G43/G43.1/G49, program units.
+    UseToolLengthOffset {
+        /// Offset per axis (X Y Z A B C).
+        offset: Pose,
+    },
     /// `OPTIONAL_PROGRAM_STOP()` (M1).
     OptionalProgramStop,
     /// `PROGRAM_STOP()` (M0).

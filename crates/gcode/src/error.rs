@@ -41,6 +41,12 @@ pub enum ErrorKind {
     /// A named parameter read before it was set.
     #[error("Named parameter #<{0}> not defined")]
     UndefinedNamedParameter(String),
+    /// A T or H word naming a tool that is not in the tool table.
+    #[error("Requested tool {0} not found in the tool table")]
+    ToolNotFound(u32),
+    /// A T, H or similar word that is not a whole, non-negative number.
+    #[error("Bad tool number: {0}")]
+    BadToolNumber(f64),
     /// A canned cycle outside the XY plane (G18/G19 cycles are not implemented).
     #[error("Canned cycles are implemented in the XY plane (G17) only")]
     CycleOutsideXy,

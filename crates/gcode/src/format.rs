@@ -191,6 +191,32 @@ pub fn write_canon(o: &mut String, c: &Canon, p: Precision) {
             num(o, *tolerance, p);
             o.push(')');
         }
+        Canon::SelectTool { tool } => {
+            let _ = write!(o, "SELECT_TOOL({tool})");
+        }
+        Canon::StartChange => o.push_str("START_CHANGE()"),
+        Canon::ChangeTool { index } => {
+            let _ = write!(o, "CHANGE_TOOL({index})");
+        }
+        Canon::UseToolLengthOffset { offset } => {
+            o.push_str("USE_TOOL_LENGTH_OFFSET(");
+            for (k, v) in offset.iter().enumerate() {
+                if k == 3 {
+                    o.push_str(", ");
+                } else if k > 0 {
+                    o.push(' ');
+                }
+                num(o, *v, p);
+            }
+            o.push_str(", ");
+            for k in 0..3 {
+                if k > 0 {
+                    o.push(' ');
+                }
+                num(o, 0.0, p);
+            }
+            o.push(')');
+        }
         Canon::OptionalProgramStop => o.push_str("OPTIONAL_PROGRAM_STOP()"),
         Canon::ProgramStop => o.push_str("PROGRAM_STOP()"),
         Canon::PalletShuttle => o.push_str("PALLET_SHUTTLE()"),

@@ -2,13 +2,14 @@
 //! canonical calls one by one (a pull-based, sans-IO iterator).
 //!
 //! Order within a block: O-word, comment/message, parameter assignments (all values on a
-//! line are read first, as in LinuxCNC), `EX` writes, feed mode (G94), F, S, M3/M4/M5,
-//! M7/M8/M9, the seed's M-functions, G4, G17-G19, G20/G21, G54-G59.3, G61/G61.1/G64,
+//! line are read first, as in LinuxCNC), `EX` writes, feed mode (G94), F, S, T, M6,
+//! M3/M4/M5, M7/M8/M9, the seed's M-functions, G4, G17-G19, G20/G21, G43/G43.1/G49,
+//! G54-G59.3, G61/G61.1/G64,
 //! G90/G91, G90.1/G91.1, G98/G99, G10/G28/G30/G52/G92.x, motion (G0-G3 with G53, canned cycles
 //! G73/G81/G82/G83/G85/G89, G80), M0/M1/M2/M30.
 //!
 //! Submodules: `modal` (a block's modal changes), `motion` (moves and arcs), `cycles`
-//! (canned cycles and path control), `reference` (G28/G30, G52), `oword`
+//! (canned cycles and path control), `reference` (G28/G30, G52), `tooling` (T, M6, G43/G49), `oword`
 //! (O-word control flow), `system_params` (LinuxCNC's read-only parameters and the
 //! `(DEBUG,...)` text). One line at a time is parsed into a reused [`Line`]; only
 //! O-word lines keep their parse (loops and calls come back to them).
@@ -19,6 +20,7 @@ mod motion;
 mod oword;
 mod reference;
 mod system_params;
+mod tooling;
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -45,6 +47,8 @@ pub struct InterpreterConfig {
     pub max_steps: u64,
     /// Maximum subroutine nesting.
     pub max_call_depth: usize,
+    /// The tool table (T, M6, G43 H look tools up in it; empty: only T0).
+    pub tools: Vec<crate::tools::Tool>,
     /// A flag another thread (a timer, a user) sets to stop the interpreter: it is read
     /// before every line (one relaxed atomic load), and the interpreter then ends with
     /// [`ErrorKind::Cancelled`] at the line it was about to execute. `None`: not
@@ -89,6 +93,7 @@ impl Default for InterpreterConfig {
             require_program_end: true,
             max_steps: 100_000_000,
             max_call_depth: 64,
+            tools: Vec::new(),
             cancel: None,
         }
     }
@@ -136,6 +141,7 @@ pub struct Interpreter<'a> {
     g92: Pose,
     /// Canned cycles' sticky words and levels, and the path control in force.
     cycles: cycles::CycleState,
+    tool: tooling::ToolState,
     path: cycles::PathControl,
     /// The last S word, and the spindle (1 clockwise, -1 counter-clockwise, 0 stopped) and
     /// coolant states, for LinuxCNC's `#<_rpm>`, `#<_spindle_on>`, `#<_mist>`...
@@ -187,6 +193,7 @@ impl<'a> Interpreter<'a> {
             origins: [[0.0; 6]; 9],
             g92: [0.0; 6],
             cycles: cycles::CycleState::default(),
+            tool: tooling::ToolState::default(),
             path: cycles::PathControl::default(),
             rpm: 0.0,
             spindle: 0,

@@ -11,8 +11,7 @@
 //!   canonical stream uses its call names, argument order and coordinate conventions
 //!   (see [`canon`]). Differences: interpreter-generated `COMMENT("interpreter: ...")`
 //!   lines and `ON_RESET()` are not emitted; unsupported codes (cutter compensation,
-//!   tool length offsets, G93/G95, XY rotation, U/V/W, canned cycles outside G17) are
-//!   errors.
+//!   G93/G95, XY rotation, U/V/W, canned cycles outside G17) are errors.
 //! * Canned cycles G73, G81, G82, G83, G85, G89 (G98/G99, L repeats, sticky words, G80)
 //!   and path control G61, G61.1, G64 P Q (`SET_MOTION_CONTROL_MODE`,
 //!   `SET_NAIVECAM_TOLERANCE`) as LinuxCNC emits them; one cycle block makes at most
@@ -25,9 +24,14 @@
 //!   #5210, G92.1 clears both, G92.2 clears the flag only (G92.3 brings them back). Saved
 //!   offsets are in millimetres, the machine's units (the standalone `rs274` keeps them in
 //!   inches: a program that reads #5211 directly sees 25.4 times its value here).
+//! * Tools: T, M6 (non-random changer: `CHANGE_TOOL` with the tool's place in the table,
+//!   the spindle stopped), G43 [H], G43.1, G49 with a tool table
+//!   ([`InterpreterConfig::tools`], LinuxCNC's `.tbl` format read by [`parse_tool_table`]);
+//!   the tool length offset moves the controlled point as in LinuxCNC. Unlike `rs274`, an
+//!   offset in force is converted when G20/G21 changes the units.
 //! * `(DEBUG,text)` is a message and `(PRINT,text)` a comment, each with the values of the
 //!   parameters named in `text` (six decimals, `######` for one not defined).
-//! * Seed additions: every M number 0..=1023 other than M0-M5, M7-M9, M30 is an
+//! * Seed additions: every M number 0..=1023 other than M0-M9, M30 is an
 //!   M-function ([`Canon::MFunction`], synchronous unless listed in
 //!   [`InterpreterConfig::async_m_functions`]), executed before the block's motion;
 //!   `EX<B|W|L|F><0..99>=value` writes an external parameter ([`Canon::ExternalParameter`]),
@@ -47,6 +51,7 @@ pub mod format;
 mod interp;
 mod params;
 mod parse;
+pub mod tools;
 mod value;
 
 pub use canon::{
@@ -55,3 +60,4 @@ pub use canon::{
 pub use error::{ErrorKind, GcodeError};
 pub use format::{format_canon, format_line, write_canon, write_line, Precision};
 pub use interp::{interpret, interpret_with, CancelFlag, Interpreter, InterpreterConfig};
+pub use tools::{parse_tool_table, Tool, ToolTableError};

@@ -21,7 +21,7 @@ pub(crate) struct Frame {
 /// [`Params::system`] (their values are published before each line is read:
 /// `interp/system_params.rs`).
 #[rustfmt::skip]
-pub(crate) const SYSTEM_NAMES: [&str; 50] = [
+pub(crate) const SYSTEM_NAMES: [&str; 53] = [
     "_x", "_y", "_z", "_a", "_b", "_c", "_u", "_v", "_w",
     "_abs_x", "_abs_y", "_abs_z", "_abs_a", "_abs_b", "_abs_c", "_abs_u", "_abs_v", "_abs_w",
     "_feed", "_rpm", "_line", "_motion_mode", "_plane", "_coord_system",
@@ -31,6 +31,7 @@ pub(crate) const SYSTEM_NAMES: [&str; 50] = [
     "_speed_override", "_feed_override", "_adaptive_feed", "_feed_hold",
     "_spindle_on", "_spindle_cw", "_mist", "_flood",
     "_vmajor", "_vminor", "_call_level", "_task", "_remap_level",
+    "_current_tool", "_selected_tool", "_tool_offset",
 ];
 
 /// Where `name` (lower case) is in [`SYSTEM_NAMES`].

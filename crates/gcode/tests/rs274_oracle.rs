@@ -12,7 +12,24 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-use motus_gcode::{format_canon, interpret, Canon, Precision, Units};
+use motus_gcode::{
+    format_canon, interpret_with, parse_tool_table, Canon, InterpreterConfig, Precision, Units,
+};
+
+/// The tool table `rs274` and Motus run with: `rs274` reads it in inches (its configured
+/// units); Motus reads the same file in inches and keeps it in millimetres.
+const TOOL_TABLE: &str = "T1 P1 D0.125 Z0.5 ;drill\nT2 P2 D0.25 Z1.25 X0.01 ;\nT7 P5 D0.5 Z-0.2 ;\n";
+
+/// Programs the Python `gcode` module cannot run: outside a running LinuxCNC it has no tool
+/// data, and a T word crashes it (segmentation fault, LinuxCNC 2.9). They are compared with
+/// `rs274` only.
+const WITHOUT_GCODE_MODULE: [&str; 1] = ["27_tools_and_length_offsets.ngc"];
+
+/// Motus's interpretation with the oracles' tool table.
+fn interpret(src: &str) -> Result<Vec<motus_gcode::CanonCall>, motus_gcode::GcodeError> {
+    let tools = parse_tool_table(TOOL_TABLE, Units::Inch).unwrap();
+    interpret_with(src, InterpreterConfig { tools, ..InterpreterConfig::default() })
+}
 
 fn corpus(sub: &str) -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus").join(sub);
@@ -29,7 +46,7 @@ fn corpus(sub: &str) -> Vec<PathBuf> {
 fn run_rs274(prog: &Path) -> (String, String, bool) {
     let tmp = tempfile::tempdir().unwrap();
     let tbl = tmp.path().join("tool.tbl");
-    std::fs::write(&tbl, "T1 P1 D0.125 Z0 ;\n").unwrap();
+    std::fs::write(&tbl, TOOL_TABLE).unwrap();
     let var = tmp.path().join("fresh.var");
     std::fs::write(&var, "").unwrap();
     let out = Command::new("rs274")
@@ -168,6 +185,11 @@ fn ours_full(src: &str) -> Vec<(String, Vec<f64>)> {
 #[test]
 fn canon_matches_gcode_module_within_1e6_mm() {
     for prog in corpus("") {
+        let name = prog.file_name().unwrap().to_string_lossy().into_owned();
+        if WITHOUT_GCODE_MODULE.contains(&name.as_str()) {
+            eprintln!("{name}: rs274 only (the gcode module has no tool table outside LinuxCNC)");
+            continue;
+        }
         let out = run_python(&prog);
         let theirs: Vec<(String, Vec<f64>)> = out
             .lines()

@@ -42,7 +42,7 @@ fn limits(specs: &[String], tolerance: f64, chord: f64) -> Result<Limits3> {
 pub fn plan(a: &GcodePlanArgs) -> Result<()> {
     let src = read_program(&a.program.file)?;
     let l = limits(&a.limits, a.tolerance, a.chord_tolerance)?;
-    let mut cfg = config(&a.program);
+    let mut cfg = config(&a.program)?;
     cfg.require_program_end = false;
     let mut run = ProgramRun::new(&src, cfg, l, [0.0; 3])?;
     let t0 = std::time::Instant::now();
@@ -115,7 +115,7 @@ fn gantry_sink(
 /// `motus gcode run` on the simulated drilling machine, optionally moving a cell's gantry.
 pub fn run(a: &GcodeRunArgs) -> Result<()> {
     let src = read_program(&a.program.file)?;
-    let mut cfg = config(&a.program);
+    let mut cfg = config(&a.program)?;
     cfg.require_program_end = false;
     let cell = a.cell.as_deref().map(gantry_of).transpose()?;
     let limits = cell.as_ref().map_or_else(Limits3::default, |(_, _, l)| *l);

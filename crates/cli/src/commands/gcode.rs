@@ -24,14 +24,26 @@ pub fn read_program(path: &Path) -> Result<String> {
 }
 
 /// The interpreter configuration of the command-line options.
-pub fn config(a: &GcodeFileArgs) -> InterpreterConfig {
-    InterpreterConfig { async_m_functions: a.async_m.clone(), ..InterpreterConfig::default() }
+///
+/// # Errors
+/// The tool table cannot be read or has a bad line.
+pub fn config(a: &GcodeFileArgs) -> Result<InterpreterConfig> {
+    let tools = match &a.tool_table {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read the tool table {}", path.display()))?;
+            motus_gcode::parse_tool_table(&text, motus_gcode::Units::Mm)
+                .with_context(|| format!("tool table {}", path.display()))?
+        }
+        None => Vec::new(),
+    };
+    Ok(InterpreterConfig { async_m_functions: a.async_m.clone(), tools, ..InterpreterConfig::default() })
 }
 
 fn check(a: &GcodeFileArgs) -> Result<()> {
     let src = read_program(&a.file)?;
     let mut calls = 0usize;
-    for c in Interpreter::with_config(&src, config(a)) {
+    for c in Interpreter::with_config(&src, config(a)?) {
         match c {
             Ok(_) => calls += 1,
             Err(e) => return Err(anyhow::anyhow!("{}", e.with_file(a.file.display().to_string()))),
@@ -45,7 +57,7 @@ fn canon(a: &GcodeCanonArgs) -> Result<()> {
     let src = read_program(&a.program.file)?;
     let out = std::io::stdout();
     let mut out = std::io::BufWriter::new(out.lock());
-    for (k, c) in Interpreter::with_config(&src, config(&a.program)).enumerate() {
+    for (k, c) in Interpreter::with_config(&src, config(&a.program)?).enumerate() {
         match c {
             Ok(c) if a.rs274 => {
                 let counter = u32::try_from(k + 1).unwrap_or(u32::MAX);

@@ -3,12 +3,15 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use motus_gcode::{format_canon, Interpreter, InterpreterConfig, Precision};
+use motus_gcode::{format_canon, parse_tool_table, Interpreter, InterpreterConfig, Precision, Units};
 
 fuzz_target!(|data: &[u8]| {
     let src = String::from_utf8_lossy(data);
+    // A small tool table, so that T, M6 and G43 H reach their tools too.
+    let tools = parse_tool_table("T1 P1 D6 Z10\nT2 P2 D3 Z-5 X0.5\n", Units::Mm).unwrap_or_default();
     let cfg = InterpreterConfig {
         max_steps: 10_000,
+        tools,
         ..InterpreterConfig::default()
     };
     for call in Interpreter::with_config(&src, cfg) {

@@ -13,6 +13,8 @@ impl Interpreter<'_> {
     /// Executes the block's words (the line's assignments, comment and EX writes are done).
     pub(super) fn execute_block(&mut self, b: &Block) -> KResult<()> {
         let gcode = |grp: usize| b.g.get(grp).copied().flatten();
+        // Axis words belong to a code other than motion (G10, G28/G30, G43.1, G52, G92).
+        let mut axes_used = false;
         if let Some((code, col)) = gcode(5) {
             if code != g::G94 {
                 return Err((col, ErrorKind::UnsupportedFeedMode(f64::from(code) / 10.0)));
@@ -37,6 +39,7 @@ impl Interpreter<'_> {
             self.rpm = s;
             self.emit(Canon::SetSpindleSpeed { rpm: s });
         }
+        self.tool_words(b)?;
         match b.m_spindle {
             Some(3) => {
                 self.spindle = 1;
@@ -91,6 +94,12 @@ impl Interpreter<'_> {
         if let Some((code, _)) = gcode(6) {
             self.set_units(if code == g::G20 { Units::Inch } else { Units::Mm });
         }
+        if let Some((code, col)) = gcode(8) {
+            if code == g::G43_1 {
+                axes_used = true;
+            }
+            self.tool_length_offset(code, b, col)?;
+        }
         if let Some((code, _)) = gcode(12) {
             let k = match code {
                 540 => 0,
@@ -123,7 +132,6 @@ impl Interpreter<'_> {
             self.cycles.retract_to_initial = code == g::G98;
         }
         let nonmodal = gcode(0);
-        let mut axes_used = false;
         if let Some((code, col)) = nonmodal {
             match code {
                 g::G10 => {

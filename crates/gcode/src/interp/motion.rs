@@ -29,7 +29,9 @@ impl Interpreter<'_> {
             let v = p.get(k).copied().unwrap_or(0.0)
                 + o.get(k).copied().unwrap_or(0.0)
                 + self.g92.get(k).copied().unwrap_or(0.0);
-            *slot = if k < 3 { v * f } else { v };
+            // Plus the tool length offset (already in machine units).
+            let tool = self.tool.offset_mm.get(k).copied().unwrap_or(0.0);
+            *slot = if k < 3 { v * f } else { v } + tool;
         }
         m
     }

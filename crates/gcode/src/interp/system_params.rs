@@ -117,6 +117,9 @@ impl Interpreter<'_> {
             self.calls.len() as f64,
             0.0,
             0.0,
+            f64::from(self.tool.current.0),
+            f64::from(self.tool.selected.0),
+            flag(self.tool.active),
         ];
         self.params.system = values;
     }
