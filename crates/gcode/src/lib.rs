@@ -25,7 +25,7 @@
 //!   offsets are in millimetres, the machine's units (the standalone `rs274` keeps them in
 //!   inches: a program that reads #5211 directly sees 25.4 times its value here).
 //! * Tools: T, M6 (non-random changer: `CHANGE_TOOL` with the tool's place in the table,
-//!   the spindle stopped), G43 [H], G43.1, G49 with a tool table
+//!   the spindle stopped), G43 (H word), G43.1, G49 with a tool table
 //!   ([`InterpreterConfig::tools`], LinuxCNC's `.tbl` format read by [`parse_tool_table`]);
 //!   the tool length offset moves the controlled point as in LinuxCNC. Unlike `rs274`, an
 //!   offset in force is converted when G20/G21 changes the units.
