@@ -221,40 +221,28 @@ impl Interpreter<'_> {
             if over != r {
                 self.cycle_move(true, x, y, r);
             }
-            match cycle {
-                Cycle::G81 => {
-                    self.cycle_move(false, x, y, bottom);
-                    self.cycle_move(true, x, y, clear);
-                }
-                Cycle::G82 => {
-                    self.cycle_move(false, x, y, bottom);
-                    self.emit(Canon::Dwell { seconds: dwell });
-                    self.cycle_move(true, x, y, clear);
-                }
-                Cycle::G83 | Cycle::G73 => {
-                    let mut depth = r - delta;
-                    while depth > bottom {
-                        self.cycle_move(false, x, y, depth);
-                        if cycle == Cycle::G83 {
-                            self.cycle_move(true, x, y, r);
-                        }
-                        self.cycle_move(true, x, y, depth + clearance);
-                        depth -= delta;
+            // Pecks first (G73: a small rapid back; G83: out to R and down again).
+            if matches!(cycle, Cycle::G73 | Cycle::G83) {
+                let mut depth = r - delta;
+                while depth > bottom {
+                    self.cycle_move(false, x, y, depth);
+                    if cycle == Cycle::G83 {
+                        self.cycle_move(true, x, y, r);
                     }
-                    self.cycle_move(false, x, y, bottom);
-                    self.cycle_move(true, x, y, clear);
-                }
-                Cycle::G85 => {
-                    self.cycle_move(false, x, y, bottom);
-                    self.cycle_move(false, x, y, r);
-                    self.cycle_move(true, x, y, clear);
-                }
-                Cycle::G89 => {
-                    self.cycle_move(false, x, y, bottom);
-                    self.emit(Canon::Dwell { seconds: dwell });
-                    self.cycle_move(false, x, y, clear);
+                    self.cycle_move(true, x, y, depth + clearance);
+                    depth -= delta;
                 }
             }
+            // Then to the bottom at the feed, a dwell (G82, G89), and out: G85 feeds back
+            // to R, G89 feeds out to the retract level, the others rapid out.
+            self.cycle_move(false, x, y, bottom);
+            if matches!(cycle, Cycle::G82 | Cycle::G89) {
+                self.emit(Canon::Dwell { seconds: dwell });
+            }
+            if cycle == Cycle::G85 {
+                self.cycle_move(false, x, y, r);
+            }
+            self.cycle_move(cycle != Cycle::G89, x, y, clear);
             level = clear;
         }
         self.cycles.z = z_word;

@@ -5,7 +5,7 @@
 
 use super::motion::Motion;
 use super::Interpreter;
-use crate::canon::{Plane, Units};
+use crate::canon::{Plane, Pose, Units};
 use crate::params::{param_index, SYSTEM_NAMES};
 
 /// The first of the current-position parameters (#5420 = X).
@@ -37,11 +37,16 @@ impl Interpreter<'_> {
         for k in pos.len()..9 {
             self.params.set(POSITION_PARAM + k, 0.0);
         }
+        // _abs_x ..: where the machine is (offsets and the tool length offset added), in
+        // program units.
         let origin = self.origins.get(self.coord).copied().unwrap_or_default();
+        let mm = self.units.mm_per_unit();
         let abs: [f64; 6] = std::array::from_fn(|k| {
+            let tool = self.tool.offset_mm.get(k).copied().unwrap_or(0.0);
             pos.get(k).copied().unwrap_or(0.0)
                 + origin.get(k).copied().unwrap_or(0.0)
                 + self.g92.get(k).copied().unwrap_or(0.0)
+                + if k < 3 { tool / mm } else { tool }
         });
         let motion_mode = match self.motion {
             None => 800.0,
@@ -61,27 +66,10 @@ impl Interpreter<'_> {
             .copied()
             .unwrap_or(540.0);
         let metric = self.units == Units::Mm;
-        let values: [f64; SYSTEM_NAMES.len()] = [
-            // _x .. _w
-            abs_or(pos, 0, 0.0),
-            abs_or(pos, 1, 0.0),
-            abs_or(pos, 2, 0.0),
-            abs_or(pos, 3, 0.0),
-            abs_or(pos, 4, 0.0),
-            abs_or(pos, 5, 0.0),
-            0.0,
-            0.0,
-            0.0,
-            // _abs_x .. _abs_w
-            abs_or(abs, 0, 0.0),
-            abs_or(abs, 1, 0.0),
-            abs_or(abs, 2, 0.0),
-            abs_or(abs, 3, 0.0),
-            abs_or(abs, 4, 0.0),
-            abs_or(abs, 5, 0.0),
-            0.0,
-            0.0,
-            0.0,
+        // _x .. _w and _abs_x .. _abs_w (no U V W here), then the rest in the order of
+        // SYSTEM_NAMES (the array's length is checked against it when this compiles).
+        let nine = |p: Pose| -> [f64; 9] { std::array::from_fn(|k| p.get(k).copied().unwrap_or(0.0)) };
+        let rest: [f64; SYSTEM_NAMES.len() - 18] = [
             self.feed,
             self.rpm,
             f64::from(self.cur_line),
@@ -121,7 +109,10 @@ impl Interpreter<'_> {
             f64::from(self.tool.selected.0),
             flag(self.tool.active),
         ];
-        self.params.system = values;
+        let values = nine(pos).into_iter().chain(nine(abs)).chain(rest);
+        for (slot, v) in self.params.system.iter_mut().zip(values) {
+            *slot = v;
+        }
     }
 
     /// `text` with each `#n` and `#<name>` replaced by the parameter's value as LinuxCNC's
@@ -162,11 +153,6 @@ impl Interpreter<'_> {
         out.push_str(rest);
         out
     }
-}
-
-/// Axis `k` of `pose`, or `default`.
-fn abs_or(pose: [f64; 6], k: usize, default: f64) -> f64 {
-    pose.get(k).copied().unwrap_or(default)
 }
 
 fn push_value(out: &mut String, v: Option<f64>) {
