@@ -41,6 +41,9 @@ pub enum ErrorKind {
     /// A named parameter read before it was set.
     #[error("Named parameter #<{0}> not defined")]
     UndefinedNamedParameter(String),
+    /// A P, Q, R, L or H word in a block with no code that uses it (LinuxCNC's check).
+    #[error("{0} word with no {1} to use it")]
+    WordWithoutCode(char, &'static str),
     /// A T or H word naming a tool that is not in the tool table.
     #[error("Requested tool {0} not found in the tool table")]
     ToolNotFound(u32),

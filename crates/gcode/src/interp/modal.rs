@@ -13,6 +13,7 @@ impl Interpreter<'_> {
     /// Executes the block's words (the line's assignments, comment and EX writes are done).
     pub(super) fn execute_block(&mut self, b: &Block) -> KResult<()> {
         let gcode = |grp: usize| b.g.get(grp).copied().flatten();
+        self.check_words(b)?;
         // Axis words belong to a code other than motion (G10, G28/G30, G43.1, G52, G92).
         let mut axes_used = false;
         if let Some((code, col)) = gcode(5) {
@@ -218,6 +219,58 @@ impl Interpreter<'_> {
             Some(1) => self.emit(Canon::OptionalProgramStop),
             Some(m) => self.program_end(m == 30),
             None => {}
+        }
+        Ok(())
+    }
+
+    /// LinuxCNC's check that every P, Q, R, L and H word has a code in the block that uses
+    /// it (the motion: the block's own, or the modal one when the block has axis words).
+    fn check_words(&self, b: &Block) -> KResult<()> {
+        let code = |grp: usize| b.g.get(grp).copied().flatten().map(|(c, _)| c);
+        let motion = code(1).or_else(|| {
+            if !b.has_axes() {
+                return None;
+            }
+            self.motion.map(|m| match m {
+                Motion::Rapid => g::G0,
+                Motion::Feed => g::G1,
+                Motion::Cw => g::G2,
+                Motion::Ccw => g::G3,
+                Motion::Cycle(c) => c.code(),
+            })
+        });
+        let cycle = motion.and_then(Cycle::from_code).is_some();
+        let arc = matches!(motion, Some(g::G2 | g::G3));
+        let (modal0, path, tool) = (code(0), code(13), code(8));
+        // The seed's M-functions may take parameters, as LinuxCNC's user M codes do.
+        let user_m = !b.m_user.is_empty();
+        let missing = |ok: bool, letter: char, users: &'static str| -> KResult<()> {
+            if ok {
+                Ok(())
+            } else {
+                Err((b.first_col, ErrorKind::WordWithoutCode(letter, users)))
+            }
+        };
+        if b.p.is_some() {
+            let ok = arc
+                || matches!(motion, Some(g::G82 | g::G89))
+                || matches!(modal0, Some(g::G4 | g::G10))
+                || path == Some(g::G64)
+                || user_m;
+            missing(ok, 'P', "G2, G3, G4, G10, G64, G82, G89 or M-function")?;
+        }
+        if b.q.is_some() {
+            let ok = matches!(motion, Some(g::G73 | g::G83)) || path == Some(g::G64) || user_m;
+            missing(ok, 'Q', "G64, G73, G83 or M-function")?;
+        }
+        if b.r.is_some() {
+            missing(arc || cycle || modal0 == Some(g::G10), 'R', "G2, G3, G10 or canned cycle")?;
+        }
+        if b.l.is_some() {
+            missing(cycle || modal0 == Some(g::G10), 'L', "G10 or canned cycle")?;
+        }
+        if b.h.is_some() {
+            missing(tool == Some(g::G43), 'H', "G43")?;
         }
         Ok(())
     }
