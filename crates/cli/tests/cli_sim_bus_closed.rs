@@ -19,6 +19,9 @@ fn free_port() -> u16 {
 struct Process {
     child: Child,
     stderr: Arc<Mutex<String>>,
+    /// The thread collecting stderr: joined once the process has exited, so that its last
+    /// lines are in (a loaded host may run it after the exit is seen).
+    reader: Option<std::thread::JoinHandle<()>>,
 }
 
 impl Process {
@@ -35,12 +38,12 @@ impl Process {
             }
         }
         let keep = Arc::clone(&stderr);
-        std::thread::spawn(move || {
+        let reader = std::thread::spawn(move || {
             for line in lines.map_while(Result::ok) {
                 keep.lock().unwrap().push_str(&format!("{line}\n"));
             }
         });
-        Process { child, stderr }
+        Process { child, stderr, reader: Some(reader) }
     }
 
     /// Waits for the process to exit by itself (generous time-out).
@@ -48,6 +51,10 @@ impl Process {
         let t0 = Instant::now();
         loop {
             if let Some(status) = self.child.try_wait().unwrap() {
+                // The pipe is closed with the process: its reader ends with the last line.
+                if let Some(reader) = self.reader.take() {
+                    let _ = reader.join();
+                }
                 return status;
             }
             assert!(t0.elapsed() < timeout, "still running after {timeout:?}; stderr:\n{}", self.stderr());
