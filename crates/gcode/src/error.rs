@@ -41,6 +41,18 @@ pub enum ErrorKind {
     /// A named parameter read before it was set.
     #[error("Named parameter #<{0}> not defined")]
     UndefinedNamedParameter(String),
+    /// A feed move under G93 without its F word.
+    #[error("F word missing with inverse time g{0} move")]
+    InverseTimeWithoutF(u8),
+    /// A feed move under G95 with the spindle speed zero.
+    #[error("Cannot feed with zero spindle speed in feed per rev mode")]
+    ZeroSpindlePerRevolution,
+    /// A feed move under G95 and G96 without the rpm limit (D) to plan its speed with.
+    #[error("Feed per revolution under G96 needs its D word (the rpm limit) to plan the move")]
+    PerRevolutionUnderCssWithoutLimit,
+    /// A canned cycle under G93 (inverse time).
+    #[error("Canned cycles need G94 or G95, not inverse time (G93)")]
+    CycleInverseTime,
     /// A P, Q, R, L or H word in a block with no code that uses it (LinuxCNC's check).
     #[error("{0} word with no {1} to use it")]
     WordWithoutCode(char, &'static str),
@@ -177,9 +189,6 @@ pub enum ErrorKind {
     /// A negative spindle speed.
     #[error("Negative spindle speed used")]
     NegativeSpindle,
-    /// Inverse-time or per-revolution feed (not implemented).
-    #[error("Feed mode G{0} is not supported")]
-    UnsupportedFeedMode(f64),
     /// An O-word problem (unknown keyword, unmatched structure, ...).
     #[error("O-word error: {0}")]
     OWord(String),
