@@ -113,6 +113,8 @@ pub(crate) struct Block {
     pub(crate) t: Option<f64>,
     pub(crate) h: Option<f64>,
     pub(crate) d: Option<f64>,
+    /// Polar radius `@` and angle `^` (degrees).
+    pub(crate) polar: [Option<f64>; 2],
     /// Column of the first axis word (for error positions).
     pub(crate) axis_col: Option<u32>,
     /// Column of the motion word or of the first word.
@@ -120,8 +122,14 @@ pub(crate) struct Block {
 }
 
 impl Block {
+    /// Axis words, polar ones included.
     pub(crate) fn has_axes(&self) -> bool {
-        self.axes.iter().any(Option::is_some)
+        self.axes.iter().any(Option::is_some) || self.has_polar()
+    }
+
+    /// A polar radius or angle word.
+    pub(crate) fn has_polar(&self) -> bool {
+        self.polar.iter().any(Option::is_some)
     }
 }
 
@@ -214,6 +222,13 @@ pub(crate) fn read_block(b: &mut Block, line: &Line, params: &Params, stack: &mu
             b'T' => set(&mut b.t, b'T')?,
             b'H' => set(&mut b.h, b'H')?,
             b'D' => set(&mut b.d, b'D')?,
+            b'@' | b'^' => {
+                let k = usize::from(w.letter == b'^');
+                if let Some(slot) = b.polar.get_mut(k) {
+                    set(slot, w.letter)?;
+                }
+                b.axis_col.get_or_insert(col);
+            }
             other => return Err((col, ErrorKind::UnsupportedLetter(char::from(other)))),
         }
     }

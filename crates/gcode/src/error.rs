@@ -41,6 +41,12 @@ pub enum ErrorKind {
     /// A named parameter read before it was set.
     #[error("Named parameter #<{0}> not defined")]
     UndefinedNamedParameter(String),
+    /// A polar word (`@`, `^`) beside an X or Y word.
+    #[error("Cannot specify both polar coordinate and {0} word")]
+    PolarWithAxis(char),
+    /// A polar word in a block whose motion is not G0-G3.
+    #[error("Polar coordinates (@, ^) are used by G0, G1, G2 and G3 only")]
+    PolarWithoutStraightOrArc,
     /// A feed move under G93 without its F word.
     #[error("F word missing with inverse time g{0} move")]
     InverseTimeWithoutF(u8),

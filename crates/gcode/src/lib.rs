@@ -11,7 +11,7 @@
 //!   canonical stream uses its call names, argument order and coordinate conventions
 //!   (see [`canon`]). Differences: interpreter-generated `COMMENT("interpreter: ...")`
 //!   lines and `ON_RESET()` are not emitted; unsupported codes (cutter compensation, XY
-//!   rotation, polar coordinates, U/V/W, canned cycles outside G17) are errors.
+//!   rotation, U/V/W, canned cycles outside G17, polar words outside G0-G3) are errors.
 //! * Feed modes G93 (inverse time: the rate is sent before each move), G94, G95 (per
 //!   revolution: planned with the S word, or G96's D limit), spindle modes G96/G97; every
 //!   feed move's [`MachineMove`] carries its rate in mm/min.

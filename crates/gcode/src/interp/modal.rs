@@ -270,6 +270,17 @@ impl Interpreter<'_> {
         if b.d.is_some() {
             missing(code(14) == Some(g::G96), 'D', "G96")?;
         }
+        if b.has_polar() {
+            for (k, letter) in [(0, 'X'), (1, 'Y')] {
+                if b.axes.get(k).copied().flatten().is_some() {
+                    return Err((b.first_col, ErrorKind::PolarWithAxis(letter)));
+                }
+            }
+            let straight_or_arc = matches!(motion, Some(g::G0 | g::G1 | g::G2 | g::G3));
+            if !straight_or_arc || modal0.is_some_and(|c| c != g::G53) {
+                return Err((b.first_col, ErrorKind::PolarWithoutStraightOrArc));
+            }
+        }
         Ok(())
     }
 

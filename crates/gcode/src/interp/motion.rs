@@ -66,6 +66,24 @@ impl Interpreter<'_> {
                 *slot + v
             };
         }
+        if b.has_polar() {
+            // LinuxCNC: X and Y from the polar words, about the origin (G90) or from the
+            // current point's own radius and angle (G91).
+            let (x, y) = (start.first().copied().unwrap_or(0.0), start.get(1).copied().unwrap_or(0.0));
+            let (r0, a0) = (x.hypot(y), y.atan2(x));
+            let [pr, pa] = b.polar;
+            let (radius, theta) = if self.absolute {
+                (pr.unwrap_or(r0), pa.map_or(a0, f64::to_radians))
+            } else {
+                (r0 + pr.unwrap_or(0.0), a0 + pa.unwrap_or(0.0).to_radians())
+            };
+            if let Some(slot) = end.get_mut(0) {
+                *slot = radius * theta.cos();
+            }
+            if let Some(slot) = end.get_mut(1) {
+                *slot = radius * theta.sin();
+            }
+        }
         let ms = self.to_machine(&start);
         let me = self.to_machine(&end);
         match m {
