@@ -141,7 +141,13 @@ impl Interpreter<'_> {
                     }
                     let ci = b.ijk.get(f).copied().flatten().unwrap_or(0.0);
                     let cj = b.ijk.get(s).copied().flatten().unwrap_or(0.0);
-                    arc::centre_ijk(self.units, st, en, (ci, cj), self.arc_absolute).map_err(|k| (mcol, k))?
+                    let letters = match self.plane {
+                        Plane::Xy => ('X', 'Y'),
+                        Plane::Xz => ('Z', 'X'),
+                        Plane::Yz => ('Y', 'Z'),
+                    };
+                    arc::centre_ijk(self.units, st, en, (ci, cj), self.arc_absolute, letters)
+                        .map_err(|k| (mcol, k))?
                 };
                 let rotation = if cw { -turns } else { turns };
                 let arcf = ArcFeed {
