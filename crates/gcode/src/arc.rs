@@ -29,6 +29,7 @@ pub(crate) fn centre_ijk(
     end: (f64, f64),
     ij: (f64, f64),
     absolute: bool,
+    axes: (char, char),
 ) -> Result<(f64, f64), ErrorKind> {
     let c = if absolute { ij } else { (start.0 + ij.0, start.1 + ij.1) };
     let tol = radius_tolerance(units);
@@ -38,9 +39,18 @@ pub(crate) fn centre_ijk(
         return Err(ErrorKind::ZeroRadiusArc);
     }
     let abs_err = (r1 - r2).abs();
-    let rel_err = abs_err / r1;
+    let rel_err = abs_err / r1.max(r2);
     if abs_err > 100.0 * tol || (rel_err > 0.001 && abs_err > tol) {
-        return Err(ErrorKind::ArcRadiusMismatch { r1, r2, abs_err, rel_err: rel_err * 100.0 });
+        return Err(ErrorKind::ArcRadiusMismatch {
+            axes,
+            start,
+            centre: c,
+            end,
+            r1,
+            r2,
+            abs_err,
+            rel_err: rel_err * 100.0,
+        });
     }
     Ok(c)
 }
@@ -97,10 +107,10 @@ mod tests {
     #[test]
     fn ijk_tolerance_rule() {
         // r1 = 10, r2 = 10.02: abs_err 0.02 < tol 0.028 -> accepted.
-        assert!(centre_ijk(Units::Mm, (0.0, 0.0), (20.02, 0.0), (10.0, 0.0), false).is_ok());
+        assert!(centre_ijk(Units::Mm, (0.0, 0.0), (20.02, 0.0), (10.0, 0.0), false, ('X', 'Y')).is_ok());
         // r2 = 10.03: abs_err 0.03 > tol and rel_err 0.3 % > 0.1 % -> rejected.
-        assert!(centre_ijk(Units::Mm, (0.0, 0.0), (20.03, 0.0), (10.0, 0.0), false).is_err());
+        assert!(centre_ijk(Units::Mm, (0.0, 0.0), (20.03, 0.0), (10.0, 0.0), false, ('X', 'Y')).is_err());
         // r1 = 1000, r2 = 1000.5: rel_err 0.05 % < 0.1 % and abs_err < 100 tol -> accepted.
-        assert!(centre_ijk(Units::Mm, (0.0, 0.0), (2000.5, 0.0), (1000.0, 0.0), false).is_ok());
+        assert!(centre_ijk(Units::Mm, (0.0, 0.0), (2000.5, 0.0), (1000.0, 0.0), false, ('X', 'Y')).is_ok());
     }
 }

@@ -50,6 +50,8 @@ pub(crate) mod g {
     pub(crate) const G93: u16 = 930;
     pub(crate) const G94: u16 = 940;
     pub(crate) const G95: u16 = 950;
+    pub(crate) const G96: u16 = 960;
+    pub(crate) const G97: u16 = 970;
 }
 
 /// The modal group of a supported G code (LinuxCNC's numbering).
@@ -68,6 +70,7 @@ fn g_group(code: u16) -> Option<usize> {
         g::G98 | g::G99 => 10,
         540 | 550 | 560 | 570 | 580 | 590 | 591 | 592 | 593 => 12,
         g::G61 | g::G61_1 | g::G64 => 13,
+        g::G96 | g::G97 => 14,
         _ => return None,
     })
 }
@@ -87,8 +90,8 @@ fn m_group(m: u16) -> Option<usize> {
 /// One block, values evaluated.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Block {
-    /// Per modal group 0..=13: the code and its column.
-    pub(crate) g: [Option<(u16, u32)>; 14],
+    /// Per modal group 0..=14: the code and its column.
+    pub(crate) g: [Option<(u16, u32)>; 15],
     /// Standard M codes per group (4, 7, 8).
     pub(crate) m_stop: Option<u16>,
     /// M6.
@@ -109,6 +112,9 @@ pub(crate) struct Block {
     pub(crate) q: Option<f64>,
     pub(crate) t: Option<f64>,
     pub(crate) h: Option<f64>,
+    pub(crate) d: Option<f64>,
+    /// Polar radius `@` and angle `^` (degrees).
+    pub(crate) polar: [Option<f64>; 2],
     /// Column of the first axis word (for error positions).
     pub(crate) axis_col: Option<u32>,
     /// Column of the motion word or of the first word.
@@ -116,8 +122,14 @@ pub(crate) struct Block {
 }
 
 impl Block {
+    /// Axis words, polar ones included.
     pub(crate) fn has_axes(&self) -> bool {
-        self.axes.iter().any(Option::is_some)
+        self.axes.iter().any(Option::is_some) || self.has_polar()
+    }
+
+    /// A polar radius or angle word.
+    pub(crate) fn has_polar(&self) -> bool {
+        self.polar.iter().any(Option::is_some)
     }
 }
 
@@ -209,6 +221,14 @@ pub(crate) fn read_block(b: &mut Block, line: &Line, params: &Params, stack: &mu
             b'Q' => set(&mut b.q, b'Q')?,
             b'T' => set(&mut b.t, b'T')?,
             b'H' => set(&mut b.h, b'H')?,
+            b'D' => set(&mut b.d, b'D')?,
+            b'@' | b'^' => {
+                let k = usize::from(w.letter == b'^');
+                if let Some(slot) = b.polar.get_mut(k) {
+                    set(slot, w.letter)?;
+                }
+                b.axis_col.get_or_insert(col);
+            }
             other => return Err((col, ErrorKind::UnsupportedLetter(char::from(other)))),
         }
     }

@@ -145,8 +145,12 @@ pub enum Canon {
     },
     /// `SET_FEED_REFERENCE(CANON_XYZ)`.
     SetFeedReference,
-    /// `SET_FEED_MODE(0, 0)`: units per minute (G94).
-    SetFeedMode,
+    /// `SET_FEED_MODE(0, m)`: 0 = per minute (G94) or inverse time (G93, whose rates the
+    /// interpreter sends per move), 1 = per spindle revolution (G95).
+    SetFeedMode {
+        /// G95.
+        per_revolution: bool,
+    },
     /// `SET_FEED_RATE(f)`, program units per minute.
     SetFeedRate {
         /// Feed rate.
@@ -163,8 +167,12 @@ pub enum Canon {
     StartSpindleCounterclockwise,
     /// `STOP_SPINDLE_TURNING(0)` (M5).
     StopSpindleTurning,
-    /// `SET_SPINDLE_MODE(0 0.0000)` (emitted by the program-end reset).
-    SetSpindleMode,
+    /// `SET_SPINDLE_MODE(0 d)`: 0 = rpm (G97), else constant surface speed (G96) with `d`
+    /// the rpm limit.
+    SetSpindleMode {
+        /// Rpm limit under G96; 0 under G97.
+        max_rpm: f64,
+    },
     /// `MIST_ON()` (M7).
     MistOn,
     /// `FLOOD_ON()` (M8).

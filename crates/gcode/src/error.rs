@@ -41,6 +41,24 @@ pub enum ErrorKind {
     /// A named parameter read before it was set.
     #[error("Named parameter #<{0}> not defined")]
     UndefinedNamedParameter(String),
+    /// A polar word (`@`, `^`) beside an X or Y word.
+    #[error("Cannot specify both polar coordinate and {0} word")]
+    PolarWithAxis(char),
+    /// A polar word in a block whose motion is not G0-G3.
+    #[error("Polar coordinates (@, ^) are used by G0, G1, G2 and G3 only")]
+    PolarWithoutStraightOrArc,
+    /// A feed move under G93 without its F word.
+    #[error("F word missing with inverse time g{0} move")]
+    InverseTimeWithoutF(u8),
+    /// A feed move under G95 with the spindle speed zero.
+    #[error("Cannot feed with zero spindle speed in feed per rev mode")]
+    ZeroSpindlePerRevolution,
+    /// A feed move under G95 and G96 without the rpm limit (D) to plan its speed with.
+    #[error("Feed per revolution under G96 needs its D word (the rpm limit) to plan the move")]
+    PerRevolutionUnderCssWithoutLimit,
+    /// A canned cycle under G93 (inverse time).
+    #[error("Canned cycles need G94 or G95, not inverse time (G93)")]
+    CycleInverseTime,
     /// A P, Q, R, L or H word in a block with no code that uses it (LinuxCNC's check).
     #[error("{0} word with no {1} to use it")]
     WordWithoutCode(char, &'static str),
@@ -126,16 +144,28 @@ pub enum ErrorKind {
     /// A centre word that does not belong to the selected plane.
     #[error("{0} word given for arc in {1} plane")]
     ArcWrongCentreWord(char, &'static str),
-    /// The arc's end radius differs from its start radius (LinuxCNC's rule).
-    #[error("Radius to end of arc differs from radius to start: r1={r1:.4} r2={r2:.4} abs_err={abs_err:.4} rel_err={rel_err:.4}%")]
+    /// The arc's end radius differs from its start radius (LinuxCNC's rule and wording).
+    #[error(
+        "Radius to end of arc differs from radius to start: start=({a}{:.4},{b}{:.4}) center=({a}{:.4},{b}{:.4}) end=({a}{:.4},{b}{:.4}) r1={r1:.4} r2={r2:.4} abs_err={} rel_err={rel_err:.4}%",
+        start.0, start.1, centre.0, centre.1, end.0, end.1, crate::error::format_g4(*abs_err),
+        a = axes.0, b = axes.1
+    )]
     ArcRadiusMismatch {
+        /// The plane's two axes (X Y under G17, Z X under G18, Y Z under G19).
+        axes: (char, char),
+        /// Start, centre and end in the plane (program units).
+        start: (f64, f64),
+        /// See [`ErrorKind::ArcRadiusMismatch::start`].
+        centre: (f64, f64),
+        /// See [`ErrorKind::ArcRadiusMismatch::start`].
+        end: (f64, f64),
         /// Radius from the centre to the start point.
         r1: f64,
         /// Radius from the centre to the end point.
         r2: f64,
         /// |r1 - r2|.
         abs_err: f64,
-        /// |r1 - r2| / r1 * 100.
+        /// |r1 - r2| / max(r1, r2) * 100.
         rel_err: f64,
     },
     /// An arc with (near) zero radius.
@@ -177,9 +207,6 @@ pub enum ErrorKind {
     /// A negative spindle speed.
     #[error("Negative spindle speed used")]
     NegativeSpindle,
-    /// Inverse-time or per-revolution feed (not implemented).
-    #[error("Feed mode G{0} is not supported")]
-    UnsupportedFeedMode(f64),
     /// An O-word problem (unknown keyword, unmatched structure, ...).
     #[error("O-word error: {0}")]
     OWord(String),
@@ -251,3 +278,27 @@ impl std::error::Error for GcodeError {}
 
 /// An error without position yet (filled in by the caller that knows the column).
 pub(crate) type KResult<T> = Result<T, (u32, ErrorKind)>;
+
+/// A number as C's `%.4g` prints it (four significant digits, no trailing zeros; an
+/// exponent for very small or large values), for LinuxCNC's wording.
+pub(crate) fn format_g4(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let exp = v.abs().log10().floor() as i32;
+    if !(-4..4).contains(&exp) {
+        let s = format!("{v:.3e}");
+        // Rust prints 1.235e-5; C prints 1.235e-05.
+        let (m, e) = s.split_once('e').unwrap_or((&s, "0"));
+        let m = m.trim_end_matches('0').trim_end_matches('.');
+        let (sign, digits) = e.strip_prefix('-').map_or(("+", e), |d| ("-", d));
+        return format!("{m}e{sign}{digits:0>2}");
+    }
+    let decimals = usize::try_from(3 - exp).unwrap_or(0);
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        s
+    }
+}

@@ -117,7 +117,9 @@ pub fn write_canon(o: &mut String, c: &Canon, p: Precision) {
             o.push(')');
         }
         Canon::SetFeedReference => o.push_str("SET_FEED_REFERENCE(CANON_XYZ)"),
-        Canon::SetFeedMode => o.push_str("SET_FEED_MODE(0, 0)"),
+        Canon::SetFeedMode { per_revolution } => {
+            o.push_str(if *per_revolution { "SET_FEED_MODE(0, 1)" } else { "SET_FEED_MODE(0, 0)" });
+        }
         Canon::SetFeedRate { rate } => {
             o.push_str("SET_FEED_RATE(");
             num(o, *rate, p);
@@ -131,9 +133,9 @@ pub fn write_canon(o: &mut String, c: &Canon, p: Precision) {
         Canon::StartSpindleClockwise => o.push_str("START_SPINDLE_CLOCKWISE(0)"),
         Canon::StartSpindleCounterclockwise => o.push_str("START_SPINDLE_COUNTERCLOCKWISE(0)"),
         Canon::StopSpindleTurning => o.push_str("STOP_SPINDLE_TURNING(0)"),
-        Canon::SetSpindleMode => {
+        Canon::SetSpindleMode { max_rpm } => {
             o.push_str("SET_SPINDLE_MODE(0 ");
-            num(o, 0.0, p);
+            num(o, *max_rpm, p);
             o.push(')');
         }
         Canon::MistOn => o.push_str("MIST_ON()"),

@@ -2,19 +2,20 @@
 //! canonical calls one by one (a pull-based, sans-IO iterator).
 //!
 //! Order within a block: O-word, comment/message, parameter assignments (all values on a
-//! line are read first, as in LinuxCNC), `EX` writes, feed mode (G94), F, S, T, M6,
+//! line are read first, as in LinuxCNC), `EX` writes, feed mode (G93-G95), F, G96/G97, S, T, M6,
 //! M3/M4/M5, M7/M8/M9, the seed's M-functions, G4, G17-G19, G20/G21, G43/G43.1/G49,
 //! G54-G59.3, G61/G61.1/G64,
 //! G90/G91, G90.1/G91.1, G98/G99, G10/G28/G30/G52/G92.x, motion (G0-G3 with G53, canned cycles
 //! G73/G81/G82/G83/G85/G89, G80), M0/M1/M2/M30.
 //!
 //! Submodules: `modal` (a block's modal changes), `motion` (moves and arcs), `cycles`
-//! (canned cycles and path control), `reference` (G28/G30, G52), `tooling` (T, M6, G43/G49), `oword`
+//! (canned cycles and path control), `feed` (G93-G97), `reference` (G28/G30, G52), `tooling` (T, M6, G43/G49), `oword`
 //! (O-word control flow), `system_params` (LinuxCNC's read-only parameters and the
 //! `(DEBUG,...)` text). One line at a time is parsed into a reused [`Line`]; only
 //! O-word lines keep their parse (loops and calls come back to them).
 
 mod cycles;
+mod feed;
 mod modal;
 mod motion;
 mod oword;
@@ -132,8 +133,12 @@ pub struct Interpreter<'a> {
     absolute: bool,
     arc_absolute: bool,
     plane: Plane,
+    /// The feed rate (program units per minute or per revolution), the feed mode, the
+    /// last F under G93, and the rpm limit under G96.
     feed: f64,
-    feed_mm: f64,
+    feed_mode: feed::FeedMode,
+    inverse_f: f64,
+    css_max_rpm: Option<f64>,
     motion: Option<Motion>,
     pos: Pose,
     coord: usize,
@@ -186,7 +191,9 @@ impl<'a> Interpreter<'a> {
             arc_absolute: false,
             plane: Plane::Xy,
             feed: 0.0,
-            feed_mm: 0.0,
+            feed_mode: feed::FeedMode::PerMinute,
+            inverse_f: 0.0,
+            css_max_rpm: None,
             motion: None,
             pos: [0.0; 6],
             coord: 0,

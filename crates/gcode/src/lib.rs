@@ -10,8 +10,11 @@
 //! * Dialect: LinuxCNC's `rs274` is the reference (see `tests/rs274_oracle.rs`); the
 //!   canonical stream uses its call names, argument order and coordinate conventions
 //!   (see [`canon`]). Differences: interpreter-generated `COMMENT("interpreter: ...")`
-//!   lines and `ON_RESET()` are not emitted; unsupported codes (cutter compensation,
-//!   G93/G95, XY rotation, U/V/W, canned cycles outside G17) are errors.
+//!   lines and `ON_RESET()` are not emitted; unsupported codes (cutter compensation, XY
+//!   rotation, U/V/W, canned cycles outside G17, polar words outside G0-G3) are errors.
+//! * Feed modes G93 (inverse time: the rate is sent before each move), G94, G95 (per
+//!   revolution: planned with the S word, or G96's D limit), spindle modes G96/G97; every
+//!   feed move's [`MachineMove`] carries its rate in mm/min.
 //! * Canned cycles G73, G81, G82, G83, G85, G89 (G98/G99, L repeats, sticky words, G80)
 //!   and path control G61, G61.1, G64 P Q (`SET_MOTION_CONTROL_MODE`,
 //!   `SET_NAIVECAM_TOLERANCE`) as LinuxCNC emits them; one cycle block makes at most

@@ -229,7 +229,8 @@ impl Line {
             } else if c == b'e' && cur.peek_at(1) == Some(b'x') {
                 cur.pos += 2;
                 self.ex.push(read_ex(&mut cur, col)?);
-            } else if c.is_ascii_alphabetic() {
+            } else if c.is_ascii_alphabetic() || c == b'@' || c == b'^' {
+                // `@` and `^` are the polar radius and angle words.
                 cur.bump();
                 let letter = c.to_ascii_uppercase();
                 let value = cur.value(letter)?;

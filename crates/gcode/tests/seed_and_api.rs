@@ -145,3 +145,23 @@ fn program_end_optional() {
     // % delimited program: ends at the second %.
     assert!(interpret("%\nG0 X1\n%\nthis is not parsed\n").is_ok());
 }
+
+/// LinuxCNC's wording for an arc whose end radius differs, points included (the texts are
+/// what `rs274` 2.9 printed for these programs).
+#[test]
+fn arc_radius_errors_read_as_linuxcnc_words_them() {
+    let cases = [
+        (
+            "G21 G90 F100\nG18\nG2 X10 Z0 I0 K4\nM2\n",
+            "Radius to end of arc differs from radius to start: start=(Z0.0000,X0.0000) center=(Z4.0000,X0.0000) end=(Z0.0000,X10.0000) r1=4.0000 r2=10.7703 abs_err=6.77 rel_err=62.8609%",
+        ),
+        (
+            "G21 G90 F100\nG0 X0.123 Y1\nG2 X20.03 Y1 I10 J0\nM2\n",
+            "Radius to end of arc differs from radius to start: start=(X0.1230,Y1.0000) center=(X10.1230,Y1.0000) end=(X20.0300,Y1.0000) r1=10.0000 r2=9.9070 abs_err=0.093 rel_err=0.9300%",
+        ),
+    ];
+    for (prog, rs274) in cases {
+        let e = motus_gcode::interpret(prog).unwrap_err();
+        assert_eq!(e.kind.to_string(), rs274);
+    }
+}

@@ -4,6 +4,7 @@
 //! level kept for G98 until G80 or another motion, the exact-path mode around each cycle
 //! block, the 0.010 inch rapid clearance of the peck cycles) and its error checks.
 
+use super::feed::FeedMode;
 use super::motion::Motion;
 use super::Interpreter;
 use crate::block::{g, Block};
@@ -141,6 +142,9 @@ impl Interpreter<'_> {
         if first && b.r.is_none() {
             return Err((col, ErrorKind::CycleWithoutR));
         }
+        if self.feed_mode == FeedMode::InverseTime {
+            return Err((col, ErrorKind::CycleInverseTime));
+        }
         if self.feed == 0.0 {
             return Err((col, ErrorKind::CycleZeroFeed));
         }
@@ -195,10 +199,11 @@ impl Interpreter<'_> {
         if moves > MAX_CYCLE_MOVES as f64 {
             return Err((col, ErrorKind::CycleTooManyMoves(MAX_CYCLE_MOVES)));
         }
+        let feed = Some(self.move_feed(0.0, b, 1, col)?);
         // Below the R plane: straight up to it first, where the tool is.
         let mut level = current_z;
         if old_z < r {
-            self.cycle_move(true, get(&self.pos, 0), get(&self.pos, 1), r);
+            self.cycle_move(None, get(&self.pos, 0), get(&self.pos, 1), r);
             old_z = r;
             level = r;
         }
@@ -217,32 +222,32 @@ impl Interpreter<'_> {
             // Over to the hole at the higher of where the tool is and the retract level,
             // then down to the R plane (as rs274 2.9 moves).
             let over = level.max(clear);
-            self.cycle_move(true, x, y, over);
+            self.cycle_move(None, x, y, over);
             if over != r {
-                self.cycle_move(true, x, y, r);
+                self.cycle_move(None, x, y, r);
             }
             // Pecks first (G73: a small rapid back; G83: out to R and down again).
             if matches!(cycle, Cycle::G73 | Cycle::G83) {
                 let mut depth = r - delta;
                 while depth > bottom {
-                    self.cycle_move(false, x, y, depth);
+                    self.cycle_move(feed, x, y, depth);
                     if cycle == Cycle::G83 {
-                        self.cycle_move(true, x, y, r);
+                        self.cycle_move(None, x, y, r);
                     }
-                    self.cycle_move(true, x, y, depth + clearance);
+                    self.cycle_move(None, x, y, depth + clearance);
                     depth -= delta;
                 }
             }
             // Then to the bottom at the feed, a dwell (G82, G89), and out: G85 feeds back
             // to R, G89 feeds out to the retract level, the others rapid out.
-            self.cycle_move(false, x, y, bottom);
+            self.cycle_move(feed, x, y, bottom);
             if matches!(cycle, Cycle::G82 | Cycle::G89) {
                 self.emit(Canon::Dwell { seconds: dwell });
             }
             if cycle == Cycle::G85 {
-                self.cycle_move(false, x, y, r);
+                self.cycle_move(feed, x, y, r);
             }
-            self.cycle_move(cycle != Cycle::G89, x, y, clear);
+            self.cycle_move(if cycle == Cycle::G89 { feed } else { None }, x, y, clear);
             level = clear;
         }
         self.cycles.z = z_word;
@@ -259,8 +264,9 @@ impl Interpreter<'_> {
         Ok(())
     }
 
-    /// One straight move of a cycle to (`x`, `y`, `z`), the other axes where they are.
-    fn cycle_move(&mut self, rapid: bool, x: f64, y: f64, z: f64) {
+    /// One straight move of a cycle to (`x`, `y`, `z`), the other axes where they are: at
+    /// `feed` (mm/min), or a rapid when `None`.
+    fn cycle_move(&mut self, feed: Option<f64>, x: f64, y: f64, z: f64) {
         let start = self.pos;
         let mut end = start;
         for (k, v) in [(0, x), (1, y), (2, z)] {
@@ -269,11 +275,13 @@ impl Interpreter<'_> {
             }
         }
         let (ms, me) = (self.to_machine(&start), self.to_machine(&end));
-        if rapid {
-            self.emit_move(Canon::StraightTraverse { end }, MachineMove::Traverse { start: ms, end: me });
-        } else {
-            let feed = self.feed_mm;
-            self.emit_move(Canon::StraightFeed { end }, MachineMove::Feed { start: ms, end: me, feed });
+        match feed {
+            None => {
+                self.emit_move(Canon::StraightTraverse { end }, MachineMove::Traverse { start: ms, end: me });
+            }
+            Some(feed) => {
+                self.emit_move(Canon::StraightFeed { end }, MachineMove::Feed { start: ms, end: me, feed });
+            }
         }
         self.pos = end;
     }

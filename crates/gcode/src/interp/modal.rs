@@ -16,22 +16,17 @@ impl Interpreter<'_> {
         self.check_words(b)?;
         // Axis words belong to a code other than motion (G10, G28/G30, G43.1, G52, G92).
         let mut axes_used = false;
-        if let Some((code, col)) = gcode(5) {
-            if code != g::G94 {
-                return Err((col, ErrorKind::UnsupportedFeedMode(f64::from(code) / 10.0)));
-            }
-            self.emit(Canon::SetFeedMode);
-            self.emit(Canon::SetFeedRate { rate: 0.0 });
-            self.feed = 0.0;
-            self.feed_mm = 0.0;
+        if let Some((code, _)) = gcode(5) {
+            self.set_feed_mode(code);
         }
         if let Some(f) = b.f {
             if f < 0.0 {
                 return Err((b.first_col, ErrorKind::NegativeFeed));
             }
-            self.feed = f;
-            self.feed_mm = f * self.units.mm_per_unit();
-            self.emit(Canon::SetFeedRate { rate: f });
+            self.feed_word(f);
+        }
+        if let Some((code, _)) = gcode(14) {
+            self.set_spindle_mode(code, b);
         }
         if let Some(s) = b.s {
             if s < 0.0 {
@@ -272,6 +267,20 @@ impl Interpreter<'_> {
         if b.h.is_some() {
             missing(tool == Some(g::G43), 'H', "G43")?;
         }
+        if b.d.is_some() {
+            missing(code(14) == Some(g::G96), 'D', "G96")?;
+        }
+        if b.has_polar() {
+            for (k, letter) in [(0, 'X'), (1, 'Y')] {
+                if b.axes.get(k).copied().flatten().is_some() {
+                    return Err((b.first_col, ErrorKind::PolarWithAxis(letter)));
+                }
+            }
+            let straight_or_arc = matches!(motion, Some(g::G0 | g::G1 | g::G2 | g::G3));
+            if !straight_or_arc || modal0.is_some_and(|c| c != g::G53) {
+                return Err((b.first_col, ErrorKind::PolarWithoutStraightOrArc));
+            }
+        }
         Ok(())
     }
 
@@ -320,13 +329,11 @@ impl Interpreter<'_> {
         }
         self.absolute = true;
         self.set_motion_mode(Some(Motion::Feed));
-        self.emit(Canon::SetFeedMode);
-        self.emit(Canon::SetFeedRate { rate: 0.0 });
-        self.feed = 0.0;
-        self.feed_mm = 0.0;
+        self.set_feed_mode(g::G94);
         self.spindle = 0;
         self.emit(Canon::StopSpindleTurning);
-        self.emit(Canon::SetSpindleMode);
+        self.css_max_rpm = None;
+        self.emit(Canon::SetSpindleMode { max_rpm: 0.0 });
         // Coolant that is on is turned off (LinuxCNC: mist, then flood).
         if std::mem::take(&mut self.mist) {
             self.emit(Canon::MistOff);

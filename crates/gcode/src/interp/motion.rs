@@ -2,6 +2,7 @@
 //! turns), emitted in program units with the same move in machine millimetres.
 
 use super::cycles::Cycle;
+use super::feed::FeedMode;
 use super::Interpreter;
 use crate::arc;
 use crate::block::Block;
@@ -65,6 +66,24 @@ impl Interpreter<'_> {
                 *slot + v
             };
         }
+        if b.has_polar() {
+            // LinuxCNC: X and Y from the polar words, about the origin (G90) or from the
+            // current point's own radius and angle (G91).
+            let (x, y) = (start.first().copied().unwrap_or(0.0), start.get(1).copied().unwrap_or(0.0));
+            let (r0, a0) = (x.hypot(y), y.atan2(x));
+            let [pr, pa] = b.polar;
+            let (radius, theta) = if self.absolute {
+                (pr.unwrap_or(r0), pa.map_or(a0, f64::to_radians))
+            } else {
+                (r0 + pr.unwrap_or(0.0), a0 + pa.unwrap_or(0.0).to_radians())
+            };
+            if let Some(slot) = end.get_mut(0) {
+                *slot = radius * theta.cos();
+            }
+            if let Some(slot) = end.get_mut(1) {
+                *slot = radius * theta.sin();
+            }
+        }
         let ms = self.to_machine(&start);
         let me = self.to_machine(&end);
         match m {
@@ -72,19 +91,15 @@ impl Interpreter<'_> {
                 self.emit_move(Canon::StraightTraverse { end }, MachineMove::Traverse { start: ms, end: me });
             }
             Motion::Feed => {
-                if self.feed == 0.0 {
-                    return Err((mcol, ErrorKind::ZeroFeed(1)));
-                }
-                self.emit_move(
-                    Canon::StraightFeed { end },
-                    MachineMove::Feed { start: ms, end: me, feed: self.feed_mm },
-                );
+                let length = straight_length(&start, &end);
+                let feed = self.move_feed(length, b, 1, mcol)?;
+                self.emit_move(Canon::StraightFeed { end }, MachineMove::Feed { start: ms, end: me, feed });
             }
             // Canned cycles are executed by `cycles.rs`, never here.
             Motion::Cycle(_) => return Ok(()),
             Motion::Cw | Motion::Ccw => {
                 let cw = m == Motion::Cw;
-                if self.feed == 0.0 {
+                if self.feed_mode != FeedMode::InverseTime && self.feed == 0.0 {
                     return Err((mcol, ErrorKind::ZeroFeed(if cw { 2 } else { 3 })));
                 }
                 let (f, s, ax) = self.plane.axes();
@@ -126,7 +141,13 @@ impl Interpreter<'_> {
                     }
                     let ci = b.ijk.get(f).copied().flatten().unwrap_or(0.0);
                     let cj = b.ijk.get(s).copied().flatten().unwrap_or(0.0);
-                    arc::centre_ijk(self.units, st, en, (ci, cj), self.arc_absolute).map_err(|k| (mcol, k))?
+                    let letters = match self.plane {
+                        Plane::Xy => ('X', 'Y'),
+                        Plane::Xz => ('Z', 'X'),
+                        Plane::Yz => ('Y', 'Z'),
+                    };
+                    arc::centre_ijk(self.units, st, en, (ci, cj), self.arc_absolute, letters)
+                        .map_err(|k| (mcol, k))?
                 };
                 let rotation = if cw { -turns } else { turns };
                 let arcf = ArcFeed {
@@ -148,6 +169,8 @@ impl Interpreter<'_> {
                     *v = centre.1;
                 }
                 let mc = self.to_machine(&cpose);
+                let length = arc_length(st, en, centre, rotation, get(&end, ax) - get(&start, ax));
+                let feed = self.move_feed(length, b, if cw { 2 } else { 3 }, mcol)?;
                 self.emit_move(
                     Canon::ArcFeed(arcf),
                     MachineMove::Arc {
@@ -156,7 +179,7 @@ impl Interpreter<'_> {
                         centre: [get(&mc, 0), get(&mc, 1), get(&mc, 2)],
                         plane: self.plane,
                         rotation,
-                        feed: self.feed_mm,
+                        feed,
                     },
                 );
             }
@@ -164,4 +187,38 @@ impl Interpreter<'_> {
         self.pos = end;
         Ok(())
     }
+}
+
+/// The length of a straight move (program units): X Y Z, or the rotary axes' travel for a
+/// rotary-only move (as LinuxCNC's inverse-time rate takes it).
+fn straight_length(a: &Pose, b: &Pose) -> f64 {
+    let d = |k: usize| b.get(k).copied().unwrap_or(0.0) - a.get(k).copied().unwrap_or(0.0);
+    let linear = (d(0).powi(2) + d(1).powi(2) + d(2).powi(2)).sqrt();
+    if linear > 0.0 {
+        linear
+    } else {
+        (d(3).powi(2) + d(4).powi(2) + d(5).powi(2)).sqrt()
+    }
+}
+
+/// The length of an arc from `st` to `en` about `centre` (in its plane) with `rotation`
+/// (signed turns, LinuxCNC's), rising `axial` along the plane's normal: the helix's length.
+fn arc_length(st: (f64, f64), en: (f64, f64), centre: (f64, f64), rotation: i32, axial: f64) -> f64 {
+    use std::f64::consts::TAU;
+    let radius = (st.0 - centre.0).hypot(st.1 - centre.1);
+    let alpha = (st.1 - centre.1).atan2(st.0 - centre.0);
+    let mut beta = (en.1 - centre.1).atan2(en.0 - centre.0);
+    let theta = if rotation > 0 {
+        if beta <= alpha {
+            beta += TAU;
+        }
+        beta - alpha + f64::from(rotation - 1) * TAU
+    } else {
+        let mut alpha = alpha;
+        if alpha <= beta {
+            alpha += TAU;
+        }
+        beta - alpha + f64::from(rotation + 1) * TAU
+    };
+    (radius * theta).hypot(axial)
 }

@@ -3,6 +3,7 @@
 //! [`SYSTEM_NAMES`] (`#<_x>`, `#<_feed>`, `#<_motion_mode>`, ...), and the text of
 //! `(DEBUG,...)` and `(PRINT,...)` comments with their parameters substituted.
 
+use super::feed::FeedMode;
 use super::motion::Motion;
 use super::Interpreter;
 use crate::canon::{Plane, Pose, Units};
@@ -81,17 +82,17 @@ impl Interpreter<'_> {
             flag(self.absolute),
             flag(!self.absolute),
             flag(self.arc_absolute),
-            // Feed modes: units per minute only (G93/G95 are refused).
-            0.0,
-            1.0,
-            0.0,
+            flag(self.feed_mode == FeedMode::InverseTime),
+            flag(self.feed_mode == FeedMode::PerMinute),
+            flag(self.feed_mode == FeedMode::PerRevolution),
             // Cutter compensation off (G40).
             400.0,
-            // Radius mode (G8), spindle in rpm (G97), overrides at 100 %, feed hold allowed.
+            // Radius mode (G8).
             0.0,
             1.0,
-            1.0,
-            0.0,
+            flag(self.css_max_rpm.is_none()),
+            flag(self.css_max_rpm.is_some()),
+            // Overrides at 100 %, no adaptive feed, feed hold allowed.
             1.0,
             1.0,
             0.0,
