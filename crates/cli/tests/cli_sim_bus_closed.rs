@@ -51,9 +51,13 @@ impl Process {
         let t0 = Instant::now();
         loop {
             if let Some(status) = self.child.try_wait().unwrap() {
-                // The pipe is closed with the process: its reader ends with the last line.
+                // The pipe is closed with the process: its reader ends with the last line
+                // (a liveness bound all the same).
                 if let Some(reader) = self.reader.take() {
-                    let _ = reader.join();
+                    let t1 = Instant::now();
+                    while !reader.is_finished() && t1.elapsed() < timeout {
+                        std::thread::sleep(Duration::from_millis(20));
+                    }
                 }
                 return status;
             }

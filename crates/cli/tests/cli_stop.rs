@@ -43,7 +43,7 @@ fn ctrl_c_stops_the_station_while_checks_run() {
     let mut demo = Demo(child);
     let stderr = Arc::new(Mutex::new(Vec::<String>::new()));
     let sink = Arc::clone(&stderr);
-    std::thread::spawn(move || {
+    let reader = std::thread::spawn(move || {
         for l in BufReader::new(err).lines().map_while(Result::ok) {
             eprintln!("demo: {l}");
             sink.lock().unwrap().push(l);
@@ -98,8 +98,12 @@ fn ctrl_c_stops_the_station_while_checks_run() {
     };
     eprintln!("demo exited {:?} after Ctrl-C: {status:?}", t0.elapsed());
     assert!(status.success(), "{status:?}");
-    // Let the reader thread take the last lines.
-    std::thread::sleep(Duration::from_millis(200));
+    // The pipe closed with the demo: the reader ends once it has the last lines (a
+    // liveness bound, should anything the demo started still hold the pipe).
+    let t1 = Instant::now();
+    while !reader.is_finished() && t1.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
     let log = stderr.lock().unwrap().join("\n");
     // "stopped in 412 ms (E-stop 3 ms, web server 390 ms, machine 412 ms)", or on a loaded
     // host "exiting 2100 ms after the signal (E-stop 3 ms, ...); did not stop in time: ...".
