@@ -249,7 +249,7 @@ class T:
     def group_post(self, click, group_id):
         """Clicks and returns the group command's response; it must name the cell's group."""
         with self.page.expect_response(lambda r: "/api/groups/" in r.url and r.request.method == "POST",
-                                       timeout=10000) as info:
+                                       timeout=30000) as info:  # liveness: a loaded host
             click()
         resp = info.value
         assert resp.url.endswith(f"/api/groups/{group_id}"), f"posted to {resp.url}, the cell's group is {group_id}"
@@ -393,7 +393,7 @@ def hold_jog(t, button, seconds):
         held["held_for"] = round(time.monotonic() - t0, 2)
     finally:
         # The release sends a stop at once (the lease would only end the jog 0.5 s later).
-        with page.expect_response(lambda r: r.url.endswith(f"/api/axes/{JOG_AXIS}/stop"), timeout=10000) as stop:
+        with page.expect_response(lambda r: r.url.endswith(f"/api/axes/{JOG_AXIS}/stop"), timeout=30000) as stop:
             page.mouse.up()
         page.remove_listener("response", on_response)
     assert stop.value.status == 200, f"stop on release: {stop.value.status} {stop.value.text()}"
@@ -441,7 +441,7 @@ def step_jog(t):
         wait_until("the jog minus to start", lambda: t.api.axis(JOG_AXIS)["velocity"] < 0, timeout=10)
         page.wait_for_timeout(600)
     finally:
-        with page.expect_response(lambda r: r.url.endswith(f"/api/axes/{JOG_AXIS}/stop"), timeout=10000):
+        with page.expect_response(lambda r: r.url.endswith(f"/api/axes/{JOG_AXIS}/stop"), timeout=30000):
             page.mouse.up()
     wait_until("the axis to stop on release", lambda: at_rest(t.api.axis(JOG_AXIS)), timeout=10)
     p3 = t.api.axis(JOG_AXIS)["position"]

@@ -99,14 +99,23 @@ fn simulator_process_scan_params_home_move_and_limits() {
         (dir.path().join("line"), dir.path().join("state.json"), dir.path().join("rec.json"));
     let _sim = start_sim(&link, &state, "2,5,11");
     let port = link.to_str().unwrap();
-    let out = ok(&["ps1a", port, "scan", "--range", "0-11", "--margin-ms", MARGIN_MS, "--json"], &rec);
-    let found: Vec<u64> = serde_json::from_str::<serde_json::Value>(&out)
-        .unwrap()
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|m| m["addr"].as_u64().unwrap())
-        .collect();
+    // A scan asks each address once: on a loaded host a module the simulator process
+    // answered late is missed, so the scan is asked again (a liveness bound of 3 scans).
+    let mut found = Vec::new();
+    for attempt in 1..=3 {
+        let out = ok(&["ps1a", port, "scan", "--range", "0-11", "--margin-ms", MARGIN_MS, "--json"], &rec);
+        found = serde_json::from_str::<serde_json::Value>(&out)
+            .unwrap()
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|m| m["addr"].as_u64().unwrap())
+            .collect::<Vec<u64>>();
+        if found == [2, 5, 11] {
+            break;
+        }
+        eprintln!("scan {attempt} found {found:?}; scanning again");
+    }
     assert_eq!(found, vec![2, 5, 11]);
 
     params_set(port, "5", "40000", &rec);

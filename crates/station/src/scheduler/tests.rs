@@ -137,7 +137,8 @@ fn task_errors_raise_one_alarm_until_reset() {
     assert_eq!(sched.class_stats("io").unwrap().state, ClassState::Running);
     probe.fail.store(false, Ordering::SeqCst);
     sched.reset_alarms(Some("io")).unwrap();
-    assert!(alarms.active().is_empty());
+    // The task-error alarm is gone (a loaded host may raise a new overrun alarm meanwhile).
+    assert!(!alarms.is_active(&src, AlarmCode::TaskError), "{:?}", alarms.active());
 }
 
 #[test]
