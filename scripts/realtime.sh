@@ -86,7 +86,10 @@ fi
 # - NFv2 cycle: within 10 % of the wire limit (the bench's target);
 # - openPOWERLINK interop (issue 20, measured by the suite as root): no reset of the Motus CN
 #   by openPOWERLINK's 1 ms MN in the hold, CN turnaround p99 below 100 us (the MN's PRes
-#   time-out is 200 us), Motus MN SoC jitter p99 below 100 us;
+#   time-out is 200 us), Motus MN SoC jitter p99 below 100 us. Most resets on a loaded or
+#   idle-halting host are the MN's own: its cycle overruns its threshold and it resets every
+#   node; their gross line is one reset a second of the 60 s hold. Resets for a lost PRes of
+#   the Motus CN are told apart (target 0, gross past 10);
 # - SDO: issue 5's 10x python-canopen's master, met by each master at its best and with
 #   concurrent transfers; one transfer at a time the bus sets the rate and no master reaches
 #   10x here (docs/decisions.md), so that row's target is the figure reported (2.6x).
@@ -112,7 +115,8 @@ sdo.motus.peak|SDO rate, Motus master at its best|>=|100000|/s|100-199 k/s (deci
 sdo.motus.one_at_a_time|SDO rate, Motus master one transfer at a time|>=|14000|/s|14-20 k/s (decisions.md)
 suite.demo_load.juggler_trips|juggler supervisor trips, demo under 250 web clients (60 s in CI)|<=|0|count|0 in 5 runs (issue 18)
 suite.demo_load.estop.p99|E-stop answer p99, demo under 250 web clients|<=|100|ms|77-97 ms (issue 18)
-suite.oplk_cn_1ms.resets|openPOWERLINK MN 1 ms: resets of the Motus CN in the hold|<=|0|count|flaky under load (issue 20)
+suite.oplk_cn_1ms.resets|openPOWERLINK MN 1 ms: resets of the Motus CN in the hold|<=|0|count|29 in CI without the wake-latency hold|60
+suite.oplk_cn_1ms.resets_lost_pres|of which for a lost PRes (not the MN's own overrun)|<=|0|count|0-1 in 20 s holds (decisions.md)
 suite.oplk_cn_1ms.turnaround.p99|Motus CN PReq -> PRes p99 (openPOWERLINK MN, 1 ms, veth)|<=|100|us|46-54 us (issue 20 branch)
 suite.oplk_mn_1ms.jitter.p99|Motus MN SoC jitter p99 (openPOWERLINK CN, 1 ms, veth)|<=|100|us|1.5-15.7 us (issue 20 branch)
 EOF

@@ -34,8 +34,8 @@ mod common;
 use std::time::{Duration, Instant};
 
 use common::oplk::{
-    hold, is_operational, node1_error, node1_state, oplk_dir, percentile_us, skip_reason, write_figures, Rig,
-    SERIAL,
+    hold, is_operational, node1_error, node1_resets, node1_state, oplk_dir, percentile_us, skip_reason,
+    write_figures, ResetCause, Rig, SERIAL,
 };
 
 const SCENARIO: &str = r#"
@@ -127,21 +127,22 @@ fn run_with(cdc: &str, tag: &str, policy: Hold, extra_cn_args: &str) {
     }
     // Measured: every reset in the hold was followed by a new boot; node 1 is OPERATIONAL at
     // the end of it (liveness bound: the MN re-boots a node within seconds).
-    let mut resets = 0;
+    let mut resets = Vec::new();
     if let Hold::Measured(_) = policy {
         let settled = Instant::now() + Duration::from_secs(60);
         loop {
             rig.check_alive(&LOGS);
             let mn = rig.log("mn.log");
             let later = mn.get(operational_at + 1..).unwrap_or_default();
-            resets = later.iter().filter(|l| node1_error(l)).count();
+            resets = node1_resets(later);
             let last = later.iter().rev().find_map(|l| node1_state(l));
             if last.as_deref().is_none_or(is_operational) {
                 break;
             }
             assert!(
                 Instant::now() < settled,
-                "node 1 was not booted again after {resets} reset(s): {last:?}\n{}",
+                "node 1 was not booted again after {} reset(s): {last:?}\n{}",
+                resets.len(),
                 rig.tails(&LOGS)
             );
             std::thread::sleep(Duration::from_millis(500));
@@ -149,12 +150,25 @@ fn run_with(cdc: &str, tag: &str, policy: Hold, extra_cn_args: &str) {
     }
     // Stop: the CN prints its turnaround.
     rig.stop();
+    if let Some(keep) = std::env::var_os("MOTUS_OPLK_KEEP") {
+        let keep = std::path::PathBuf::from(keep).join(format!("{tag}-{unique}"));
+        let _ = std::fs::create_dir_all(&keep);
+        for name in LOGS {
+            let _ = std::fs::copy(rig.dir.path().join(name), keep.join(name));
+        }
+        eprintln!("{cdc}: logs kept in {}", keep.display());
+    }
     let cn = rig.log("cn.log");
     let turnaround = cn.iter().find(|l| l.contains("turnaround")).cloned();
     let summary = cn.iter().find(|l| l.contains("summary")).cloned();
+    let count = |cause| resets.iter().filter(|c| **c == cause).count();
+    let lost_pres = count(ResetCause::LostPres);
     eprintln!(
-        "{cdc}: held {} s, {resets} reset(s) by the MN; {}",
+        "{cdc}: held {} s, {} reset(s) by the MN ({} after its own cycle overruns, {lost_pres} for a lost PRes, {} other); {}",
         hold.as_secs(),
+        resets.len(),
+        count(ResetCause::MnCycleOverrun),
+        count(ResetCause::Other),
         turnaround.as_deref().unwrap_or("no turnaround line")
     );
     eprintln!("{cdc}: {}", summary.as_deref().unwrap_or("no summary"));
@@ -168,7 +182,10 @@ fn run_with(cdc: &str, tag: &str, policy: Hold, extra_cn_args: &str) {
             assert!(summary.is_some_and(|s| s.contains("cycle errors 0")), "{}", rig.tails(&LOGS));
         }
         Hold::Measured(name) => {
-            let mut figures = vec![(format!("suite.{name}.resets"), resets as f64, "count")];
+            let mut figures = vec![
+                (format!("suite.{name}.resets"), resets.len() as f64, "count"),
+                (format!("suite.{name}.resets_lost_pres"), lost_pres as f64, "count"),
+            ];
             for p in ["p50", "p99"] {
                 if let Some(v) = percentile_us(&turnaround, p) {
                     figures.push((format!("suite.{name}.turnaround.{p}"), v, "us"));
@@ -214,4 +231,28 @@ fn reads_the_mn_log() {
     assert_eq!(node1_state("Node 10 entered state NmtCsOperational"), None);
     assert!(node1_error("2026/11/27 EVENT NODE Node=  1, NmtNodeEventError State:NmtCsPreOperational2"));
     assert!(!node1_error("2026/11/27 EVENT NODE Node= 32, NmtNodeEventError State:NmtCsNotActive"));
+    let progress = "2026/11/27-19:35:55 EVENT    CFM_PROGRESS   Node=  1, Object 0x1010/001,  158/ 162 Bytes -> SDO Abort=SDO_AC_OBJECT_NOT_EXIST(0x06020000), Error=0x0000";
+    assert!(!node1_error(progress));
+}
+
+/// Resets are counted once each (the MN logs a state twice) and told apart by what the MN
+/// logged before them (two excerpts of openPOWERLINK V2.7.2's demo MN at 1 ms).
+#[test]
+fn tells_resets_apart() {
+    let log = |text: &str| text.lines().map(str::to_owned).collect::<Vec<_>>();
+    let overrun = log("\
+2026/11/27-19:36:58 EVENT    HISTORY        HistoryEntry: Type=0x3002 Code=0x8232 (0x1F 00 00 00 FD 02 00 00)
+2026/11/27-19:36:58 EVENT    HISTORY        HistoryEntry: Type=0x3002 Code=0x8233 (0x1E 00 00 00 FD 02 00 00)
+2026/11/27-19:36:58 EVENT    STATE_CHANGE   NmtMsOperational->NmtMsPreOperational1 Originating event:NmtEventNmtCycleError
+2026/11/27-19:36:58 EVENT    NODE           Node=  1, NmtNodeEventNmtState State:NmtCsNotActive
+Node 1 entered state NmtCsNotActive
+2026/11/27-19:37:00 EVENT    NODE           Node=  1, NmtNodeEventNmtState State:NmtCsOperational
+Node 1 entered state NmtCsOperational
+2026/11/27-19:35:52 EVENT    HISTORY        HistoryEntry: Type=0x3002 Code=0x8243 (0x01 00 00 00 FD 02 00 00)
+2026/11/27-19:35:52 EVENT    NODE           Node=  1, NmtNodeEventError State:NmtCsNotActive
+2026/11/27-19:35:53 EVENT    NODE           Node=  1, NmtNodeEventNmtState State:NmtCsPreOperational2
+Node 1 entered state NmtCsPreOperational2
+2026/11/27-19:37:00 EVENT    NODE           Node=  1, NmtNodeEventNmtState State:NmtCsOperational");
+    assert_eq!(node1_resets(&overrun), [ResetCause::MnCycleOverrun, ResetCause::LostPres]);
+    assert!(node1_resets(&log("Node 1 entered state NmtCsOperational")).is_empty());
 }

@@ -11,7 +11,9 @@
 //!   [`promote_current_thread`] first thing in that thread, with its [`ThreadClass`];
 //! * the web server's threads call [`demote_current_thread_for_web`];
 //! * transparent huge pages are off for the process (a 2 MiB page zeroed on first touch
-//!   stalls the thread that touched it for milliseconds).
+//!   stalls the thread that touched it for milliseconds);
+//! * with `SCHED_FIFO`, idle CPUs are kept out of idle states that are slow to wake up, for
+//!   as long as the process runs ([`mod@wake_latency`]).
 //!
 //! What each call does depends on what the process obtained ([`Obtained`]):
 //!
@@ -36,6 +38,7 @@
 
 pub mod mailbox;
 pub mod slice;
+pub mod wake_latency;
 
 pub use mailbox::{mailbox, MailboxReceiver, MailboxSender};
 
@@ -204,6 +207,11 @@ pub fn set_policy(policy: RealtimePolicy) -> Obtained {
         let obtained = decide(policy);
         if obtained != Obtained::Off {
             disable_huge_pages();
+        }
+        match wake_latency::hold(matches!(obtained, Obtained::Fifo(_))) {
+            wake_latency::WakeLatency::Off => {}
+            held @ wake_latency::WakeLatency::Held(_) => tracing::info!("real-time: {held}"),
+            failed @ wake_latency::WakeLatency::Failed(_) => tracing::warn!("real-time: {failed}"),
         }
         obtained
     })

@@ -187,9 +187,59 @@ pub fn is_operational(state: &str) -> bool {
     s.ends_with("operational") && !s.contains("preoperational")
 }
 
-/// An MN log line reporting an error for node 1.
+/// An MN log line reporting an error event for node 1 (`NmtNodeEventError`, or a line of
+/// severity ERROR). The configuration manager's progress lines ("... Error=0x0000") are not.
 pub fn node1_error(line: &str) -> bool {
-    line.contains("Node=  1,") && (line.contains("Error") || line.contains("ERROR"))
+    line.contains("Node=  1,") && (line.contains("NmtNodeEventError") || line.contains(" ERROR "))
+}
+
+/// Why the MN took node 1 out of OPERATIONAL, from what it logged since node 1 was last
+/// OPERATIONAL (openPOWERLINK's error codes, `oplk/errordefs.h`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ResetCause {
+    /// The MN's own cycle overran its threshold (`E_DLL_CYCLE_EXCEED_TH` 0x8233, the MN
+    /// leaving operation on `NmtEventNmtCycleError`): every node is reset, whatever it did.
+    MnCycleOverrun,
+    /// The MN missed node 1's PRes past its threshold (`E_DLL_LOSS_PRES_TH` 0x8243 for node
+    /// 1): the CN answered late or not at all, or the MN heard it late.
+    LostPres,
+    /// Anything else.
+    Other,
+}
+
+/// Each time node 1 left OPERATIONAL in `lines` (MN log lines that start while node 1 is
+/// OPERATIONAL), with its cause.
+pub fn node1_resets(lines: &[String]) -> Vec<ResetCause> {
+    let mut resets = Vec::new();
+    let mut operational = true;
+    let (mut overrun, mut lost_pres) = (false, false);
+    for l in lines {
+        if l.contains("Code=0x8233") || l.contains("NmtEventNmtCycleError") {
+            overrun = true;
+        }
+        if l.contains("Code=0x8243 (0x01 ") {
+            lost_pres = true;
+        }
+        let Some(state) = node1_state(l) else { continue };
+        match (operational, is_operational(&state)) {
+            (true, false) => {
+                resets.push(if overrun {
+                    ResetCause::MnCycleOverrun
+                } else if lost_pres {
+                    ResetCause::LostPres
+                } else {
+                    ResetCause::Other
+                });
+                operational = false;
+            }
+            (false, true) => {
+                operational = true;
+                (overrun, lost_pres) = (false, false);
+            }
+            _ => {}
+        }
+    }
+    resets
 }
 
 /// The value of percentile `p` ("p50", "p99") in a summary line such as "turnaround PReq ->
