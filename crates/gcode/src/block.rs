@@ -169,10 +169,13 @@ pub(crate) fn read_block(b: &mut Block, line: &Line, params: &Params, stack: &mu
                 let code = code10 as u16;
                 let grp = g_group(code).ok_or((col, ErrorKind::UnsupportedG(v)))?;
                 let slot = b.g.get_mut(grp).ok_or((col, ErrorKind::UnsupportedG(v)))?;
-                if slot.is_some() {
-                    return Err((col, ErrorKind::GModalConflict));
+                // As LinuxCNC's read_g: G80 beside another motion code (a CAM safety line's
+                // `G0 G80`) gives way to it, in either order.
+                match *slot {
+                    Some(_) if code == g::G80 => {}
+                    Some((prev, _)) if prev != g::G80 => return Err((col, ErrorKind::GModalConflict)),
+                    _ => *slot = Some((code, col)),
                 }
-                *slot = Some((code, col));
             }
             b'M' => {
                 let m = integer(v, col)?;
