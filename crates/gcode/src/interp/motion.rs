@@ -37,6 +37,17 @@ impl Interpreter<'_> {
         m
     }
 
+    /// The tool length offset in force on axis `k`, in program units (LinuxCNC's
+    /// `tool_offset`, which G53 and G28/G30 subtract from a machine position).
+    pub(super) fn tool_offset_program(&self, k: usize) -> f64 {
+        let tool = self.tool.offset_mm.get(k).copied().unwrap_or(0.0);
+        if k < 3 {
+            tool / self.units.mm_per_unit()
+        } else {
+            tool
+        }
+    }
+
     pub(super) fn origin(&self) -> Pose {
         self.origins.get(self.coord).copied().unwrap_or([0.0; 6])
     }
@@ -59,7 +70,9 @@ impl Interpreter<'_> {
                 continue;
             };
             *slot = if g53.is_some() {
-                v - origin.get(k).copied().unwrap_or(0.0) - self.g92.get(k).copied().unwrap_or(0.0)
+                v - origin.get(k).copied().unwrap_or(0.0)
+                    - self.g92.get(k).copied().unwrap_or(0.0)
+                    - self.tool_offset_program(k)
             } else if self.absolute {
                 v
             } else {
