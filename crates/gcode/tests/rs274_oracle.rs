@@ -23,11 +23,12 @@ const TOOL_TABLE: &str = "T1 P1 D0.125 Z0.5 ;drill\nT2 P2 D0.25 Z1.25 X0.01 ;\nT
 /// Programs the Python `gcode` module cannot run: outside a running LinuxCNC it has no tool
 /// data, and a T word crashes it (segmentation fault, LinuxCNC 2.9). They are compared with
 /// `rs274` only.
-const WITHOUT_GCODE_MODULE: [&str; 4] = [
+const WITHOUT_GCODE_MODULE: [&str; 5] = [
     "27_tools_and_length_offsets.ngc",
     "30_fusion_2d_contour_mm.ngc",
     "31_mastercam_pocket_helix.ngc",
     "49_g53_tool_change_with_length_offsets.ngc",
+    "61_g92_g52_with_tool_offset_inch.ngc",
 ];
 
 /// Motus's interpretation with the oracles' tool table.
