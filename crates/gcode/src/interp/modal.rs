@@ -79,16 +79,30 @@ impl Interpreter<'_> {
             }
             self.emit(Canon::Dwell { seconds: p });
         }
-        if let Some((code, _)) = gcode(2) {
-            self.plane = match code {
+        if let Some((code, col)) = gcode(2) {
+            let plane = match code {
                 g::G17 => Plane::Xy,
                 g::G18 => Plane::Xz,
                 _ => Plane::Yz,
             };
+            if self.comp.on() && plane != self.plane {
+                return Err(comp_err(col, "Cannot change planes with cutter radius compensation on"));
+            }
+            self.plane = plane;
             self.emit(Canon::SelectPlane { plane: self.plane });
         }
-        if let Some((code, _)) = gcode(6) {
-            self.set_units(if code == g::G20 { Units::Inch } else { Units::Mm });
+        if let Some((code, col)) = gcode(6) {
+            let units = if code == g::G20 { Units::Inch } else { Units::Mm };
+            if self.comp.on() && units != self.units {
+                return Err(comp_err(
+                    col,
+                    "Changing units with cutter radius compensation on is not supported",
+                ));
+            }
+            self.set_units(units);
+        }
+        if let Some((code, col)) = gcode(7) {
+            self.cutter_comp_code(code, b, col)?;
         }
         if let Some((code, col)) = gcode(8) {
             if code == g::G43_1 {
@@ -96,7 +110,13 @@ impl Interpreter<'_> {
             }
             self.tool_length_offset(code, b, col)?;
         }
-        if let Some((code, _)) = gcode(12) {
+        if let Some((code, col)) = gcode(12) {
+            if self.comp.on() {
+                return Err(comp_err(
+                    col,
+                    "Cannot change coordinate systems with cutter radius compensation on",
+                ));
+            }
             let k = match code {
                 540 => 0,
                 550 => 1,
@@ -115,7 +135,10 @@ impl Interpreter<'_> {
                 self.emit(Canon::SetXyRotation { degrees: 0.0 });
             }
         }
-        if let Some((code, _)) = gcode(13) {
+        if let Some((code, col)) = gcode(13) {
+            if self.comp.on() {
+                return Err(comp_err(col, "Cannot change control mode with cutter radius compensation on"));
+            }
             self.set_path_control(code, b);
         }
         if let Some((code, _)) = gcode(3) {
@@ -129,6 +152,18 @@ impl Interpreter<'_> {
         }
         let nonmodal = gcode(0);
         if let Some((code, col)) = nonmodal {
+            if self.comp.on() {
+                let msg = match code {
+                    g::G92 | g::G92_1 | g::G92_2 | g::G92_3 | g::G52 => {
+                        Some("Cannot change axis offsets with cutter radius comp")
+                    }
+                    g::G28 | g::G30 => Some("Cannot use g28 or g30 with cutter radius comp"),
+                    _ => None,
+                };
+                if let Some(msg) = msg {
+                    return Err(comp_err(col, msg));
+                }
+            }
             match code {
                 g::G10 => {
                     axes_used = true;
@@ -198,6 +233,9 @@ impl Interpreter<'_> {
                 };
                 let mcol = explicit_motion.map_or(b.first_col, |(_, c)| c);
                 if let Motion::Cycle(c) = m {
+                    if self.comp.on() {
+                        return Err(comp_err(mcol, "Cannot use canned cycles with cutter compensation on"));
+                    }
                     if let Some((_, col)) = g53 {
                         return Err((col, ErrorKind::G53WithoutStraight));
                     }
@@ -208,6 +246,10 @@ impl Interpreter<'_> {
             } else if let Some((_, col)) = g53 {
                 return Err((col, ErrorKind::G53WithoutStraight));
             }
+        }
+        if b.m_stop.is_some() {
+            // LinuxCNC sends the held-back compensated move before a stop or the end.
+            self.dequeue_canons();
         }
         match b.m_stop {
             Some(0) => self.emit(Canon::ProgramStop),
@@ -268,7 +310,12 @@ impl Interpreter<'_> {
             missing(tool == Some(g::G43), 'H', "G43")?;
         }
         if b.d.is_some() {
-            missing(code(14) == Some(g::G96), 'D', "G96")?;
+            let comp = matches!(code(7), Some(g::G41 | g::G41_1 | g::G42 | g::G42_1));
+            missing(
+                comp || code(14) == Some(g::G96),
+                'D',
+                "G41, G41.1, G42, G42.1, G71, G71.1, G71.2 or G96",
+            )?;
         }
         if b.has_polar() {
             for (k, letter) in [(0, 'X'), (1, 'Y')] {
@@ -296,6 +343,12 @@ impl Interpreter<'_> {
         }
         // 0..=9 checked above; P0 = the active system.
         let k = if pi == 0.0 { self.coord } else { pi as usize - 1 };
+        if k == self.coord && self.comp.on() {
+            return Err(comp_err(
+                col,
+                "Cannot change the active coordinate system with cutter radius compensation on",
+            ));
+        }
         let mut new = self.origins.get(k).copied().unwrap_or([0.0; 6]);
         let cur = self.origin();
         let l20 = match l.round() as i64 {
@@ -321,6 +374,8 @@ impl Interpreter<'_> {
     }
 
     fn program_end(&mut self, pallet: bool) {
+        self.comp.side = super::cutter_comp::Side::Off;
+        self.comp.code = g::G40;
         self.select_coord(0);
         self.emit(Canon::SetXyRotation { degrees: 0.0 });
         if self.plane != Plane::Xy {
@@ -436,6 +491,11 @@ impl Interpreter<'_> {
         }
         self.emit(Canon::UseLengthUnits { units: u });
     }
+}
+
+/// A cutter compensation error at `col`.
+fn comp_err(col: u32, msg: &'static str) -> (u32, ErrorKind) {
+    (col, ErrorKind::CutterComp(msg))
 }
 
 /// What a G92-family code does with the saved offsets #5211-#5216 and their flag #5210.

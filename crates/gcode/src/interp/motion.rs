@@ -97,7 +97,29 @@ impl Interpreter<'_> {
                 *slot = radius * theta.sin();
             }
         }
-        let ms = self.to_machine(&start);
+        if matches!(m, Motion::Cw | Motion::Ccw) {
+            if self.comp.arc_not_allowed {
+                return Err((
+                    mcol,
+                    ErrorKind::CutterComp(
+                        "The move just after exiting cutter compensation mode must be straight, not an arc",
+                    ),
+                ));
+            }
+        } else {
+            self.comp.arc_not_allowed = false;
+        }
+        if self.comp.active() {
+            if let Some(col) = g53 {
+                return Err((col, ErrorKind::CutterComp("Cannot use g53 with cutter radius comp")));
+            }
+            if matches!(m, Motion::Rapid | Motion::Feed) {
+                self.comp_straight(m == Motion::Rapid, b, end, mcol)?;
+                self.pos = end;
+                return Ok(());
+            }
+        }
+        let ms = self.comp.exit_start.take().unwrap_or_else(|| self.to_machine(&start));
         let me = self.to_machine(&end);
         match m {
             Motion::Rapid => {
@@ -163,6 +185,11 @@ impl Interpreter<'_> {
                         .map_err(|k| (mcol, k))?
                 };
                 let rotation = if cw { -turns } else { turns };
+                if self.comp.active() {
+                    self.comp_arc(b, end, centre, rotation, mcol)?;
+                    self.pos = end;
+                    return Ok(());
+                }
                 let arcf = ArcFeed {
                     first_end: en.0,
                     second_end: en.1,

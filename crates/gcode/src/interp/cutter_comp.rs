@@ -1,0 +1,611 @@
+//! Cutter radius compensation (G40, G41/G42 D tool, G41.1/G42.1 D diameter) in the XY
+//! plane, after LinuxCNC 2.9's algorithm: each compensated move is held back (queued) until
+//! the next one is known, so that a concave corner can move its end point back to where the
+//! tool touches both sides; a convex corner gets an arc about the programmed corner (a
+//! straight traverse to the arc's end for G0). Calls LinuxCNC queues with the moves (feed
+//! rate, dwell, spindle, coolant, comments) wait in the same queue; others pass it.
+
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
+
+use super::feed::FeedMode;
+use super::Interpreter;
+use crate::block::{g, Block};
+use crate::canon::{ArcFeed, Canon, CanonCall, MachineMove, Plane, Pose};
+use crate::error::{ErrorKind, KResult};
+
+/// LinuxCNC's `TOLERANCE_CONCAVE_CORNER` (radians).
+const SMALL: f64 = 0.05;
+
+/// The compensation side.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(super) enum Side {
+    /// G40.
+    #[default]
+    Off,
+    /// G41 / G41.1: the tool left of the path.
+    Left,
+    /// G42 / G42.1: the tool right of the path.
+    Right,
+}
+
+/// A call held in the compensation queue; for moves, the data LinuxCNC keeps to move their
+/// end point later.
+#[derive(Debug, Clone)]
+pub(super) struct Pending {
+    call: CanonCall,
+    /// Straight moves: the programmed direction (not normalised).
+    dir: (f64, f64),
+    /// Arcs: the programmed sweep (radians, signed; 0 for an inserted corner arc).
+    sweep: f64,
+    /// Feed moves: the rate in mm/min.
+    feed: f64,
+}
+
+/// Cutter compensation state.
+#[derive(Debug, Clone, Default)]
+pub(super) struct CompState {
+    pub(super) side: Side,
+    /// The code in force, ten times its number (400, 410, 411, 420, 421: `#<_ccomp>`).
+    pub(super) code: u16,
+    radius: f64,
+    first_move: bool,
+    /// The compensated tool position (program units, X Y Z).
+    cur: [f64; 3],
+    /// Calls held back until the next move is known.
+    pub(super) queue: Vec<Pending>,
+    /// LinuxCNC's `endpoint`: where the queued move starts (`None`: not valid).
+    endpoint: Option<(f64, f64)>,
+    /// After G40 the next move must be straight.
+    pub(super) arc_not_allowed: bool,
+    /// Where the tool is after the last move sent (program units).
+    sent: Pose,
+    /// After G40: the tool's machine position, the start of the next move.
+    pub(super) exit_start: Option<Pose>,
+}
+
+impl CompState {
+    /// G40 in force.
+    pub(super) fn new() -> Self {
+        Self { code: g::G40, ..Self::default() }
+    }
+
+    /// Compensation is on with a non-zero radius (moves are offset).
+    pub(super) fn active(&self) -> bool {
+        self.side != Side::Off && self.radius > 0.0
+    }
+
+    /// Holds a non-motion call behind the queued moves.
+    pub(super) fn hold(&mut self, call: CanonCall) {
+        self.queue.push(Pending { call, dir: (0.0, 0.0), sweep: 0.0, feed: 0.0 });
+    }
+
+    /// Compensation is on (G41/G42), whatever the radius.
+    pub(super) fn on(&self) -> bool {
+        self.side != Side::Off
+    }
+}
+
+/// Whether LinuxCNC queues `c` behind a held-back compensated move (its `enqueue_*` calls).
+pub(super) fn is_queued(c: &Canon) -> bool {
+    matches!(
+        c,
+        Canon::SetFeedRate { .. }
+            | Canon::Dwell { .. }
+            | Canon::SetFeedMode { .. }
+            | Canon::MistOn
+            | Canon::MistOff
+            | Canon::FloodOn
+            | Canon::FloodOff
+            | Canon::StartSpindleClockwise
+            | Canon::StartSpindleCounterclockwise
+            | Canon::StopSpindleTurning
+            | Canon::SetSpindleMode { .. }
+            | Canon::SetSpindleSpeed { .. }
+            | Canon::Comment { .. }
+    )
+}
+
+/// LinuxCNC's `TOOL_INSIDE_ARC`.
+fn tool_inside_arc(side: Side, turn: i32) -> bool {
+    (side == Side::Left && turn > 0) || (side == Side::Right && turn < 0)
+}
+
+/// LinuxCNC's `find_turn`: the signed sweep (radians) from `p1` to `p2` about `c`.
+fn find_turn(p1: (f64, f64), c: (f64, f64), turn: i32, p2: (f64, f64)) -> f64 {
+    if turn == 0 {
+        return 0.0;
+    }
+    let mut alpha = (p1.1 - c.1).atan2(p1.0 - c.0);
+    let mut beta = (p2.1 - c.1).atan2(p2.0 - c.0);
+    if turn > 0 {
+        if beta <= alpha {
+            beta += TAU;
+        }
+        beta - alpha + f64::from(turn - 1) * TAU
+    } else {
+        if alpha <= beta {
+            alpha += TAU;
+        }
+        beta - alpha + f64::from(turn + 1) * TAU
+    }
+}
+
+fn get(p: &Pose, k: usize) -> f64 {
+    p.get(k).copied().unwrap_or(0.0)
+}
+
+/// A pose with X, Y (and Z) replaced.
+fn with_xyz(p: &Pose, x: f64, y: f64, z: f64) -> Pose {
+    let mut q = *p;
+    for (k, v) in [(0, x), (1, y), (2, z)] {
+        if let Some(s) = q.get_mut(k) {
+            *s = v;
+        }
+    }
+    q
+}
+
+/// A compensation error.
+fn cc(col: u32, msg: &'static str) -> (u32, ErrorKind) {
+    (col, ErrorKind::CutterComp(msg))
+}
+
+impl Interpreter<'_> {
+    /// G40, G41, G42, G41.1 or G42.1 (group 7), in LinuxCNC's order (after units).
+    pub(super) fn cutter_comp_code(&mut self, code: u16, b: &Block, col: u32) -> KResult<()> {
+        if code == g::G40 {
+            self.cutter_comp_off(col)?;
+            return Ok(());
+        }
+        if self.plane != Plane::Xy {
+            if self.plane == Plane::Yz {
+                return Err(cc(col, "Cutter radius compensation allowed only in XY, XZ planes"));
+            }
+            return Err(cc(col, "Cutter radius compensation in the XZ plane (G18) is not supported"));
+        }
+        if self.comp.on() {
+            return Err(cc(col, "Cannot turn cutter radius comp on when on"));
+        }
+        let name = match code {
+            g::G41 => "G41",
+            g::G42 => "G42",
+            g::G41_1 => "G41.1",
+            _ => "G42.1",
+        };
+        let radius = if code == g::G41_1 || code == g::G42_1 {
+            let d = b.d.ok_or((col, ErrorKind::CompNoD(name)))?;
+            d / 2.0
+        } else {
+            let index = match b.d {
+                None => 0,
+                Some(d) => {
+                    let r = crate::expr::round(d);
+                    if (d - r).abs() > 0.0001 || r < 0.0 || r > f64::from(u32::MAX) {
+                        return Err((col, ErrorKind::CompDNotWhole(name)));
+                    }
+                    // Whole and in range.
+                    self.tool_index(r as u32, col)?
+                }
+            };
+            let index = if index == 0 { self.tool.current.1 } else { index };
+            let diameter_mm =
+                index.checked_sub(1).and_then(|i| self.config.tools.get(i)).map_or(0.0, |t| t.diameter);
+            diameter_mm / self.units.mm_per_unit() / 2.0
+        };
+        let left = code == g::G41 || code == g::G41_1;
+        // A negative radius swaps the side.
+        let side = if (radius < 0.0) == left { Side::Right } else { Side::Left };
+        self.comp.side = side;
+        self.comp.code = code;
+        self.comp.radius = radius.abs();
+        self.comp.first_move = true;
+        self.comp.cur = [get(&self.pos, 0), get(&self.pos, 1), get(&self.pos, 2)];
+        self.comp.sent = self.pos;
+        self.comp.endpoint = None;
+        Ok(())
+    }
+
+    /// G40 (and the program end): sends what is queued; the next move starts from the
+    /// tool's compensated position.
+    pub(super) fn cutter_comp_off(&mut self, col: u32) -> KResult<()> {
+        if self.comp.active() {
+            let [cx, cy, _] = self.comp.cur;
+            self.move_endpoint_and_flush(cx, cy, col)?;
+            self.comp.exit_start = Some(self.to_machine(&self.comp.sent));
+            self.comp.arc_not_allowed = true;
+        }
+        self.comp.side = Side::Off;
+        self.comp.code = g::G40;
+        self.comp.first_move = true;
+        Ok(())
+    }
+
+    /// Sends the queue (LinuxCNC's `dequeue_canons`).
+    pub(super) fn dequeue_canons(&mut self) {
+        self.comp.endpoint = None;
+        let queue = std::mem::take(&mut self.comp.queue);
+        for p in queue {
+            let mut call = p.call;
+            let start = self.comp.sent;
+            let ms = self.to_machine(&start);
+            match &call.canon {
+                Canon::StraightTraverse { end } | Canon::StraightFeed { end } => {
+                    let me = self.to_machine(end);
+                    call.machine = Some(if matches!(call.canon, Canon::StraightTraverse { .. }) {
+                        MachineMove::Traverse { start: ms, end: me }
+                    } else {
+                        MachineMove::Feed { start: ms, end: me, feed: p.feed }
+                    });
+                    self.comp.sent = *end;
+                }
+                Canon::ArcFeed(a) => {
+                    let end = [a.first_end, a.second_end, a.axis_end, a.a, a.b, a.c];
+                    let me = self.to_machine(&end);
+                    let mc =
+                        self.to_machine(&with_xyz(&start, a.first_centre, a.second_centre, get(&start, 2)));
+                    call.machine = Some(MachineMove::Arc {
+                        start: ms,
+                        end: me,
+                        centre: [get(&mc, 0), get(&mc, 1), get(&mc, 2)],
+                        plane: Plane::Xy,
+                        rotation: a.rotation,
+                        feed: p.feed,
+                    });
+                    self.comp.sent = end;
+                }
+                _ => {}
+            }
+            self.out.push_back(call);
+        }
+    }
+
+    /// LinuxCNC's `move_endpoint_and_flush`: every queued move now ends at (x, y); then
+    /// the queue is sent.
+    fn move_endpoint_and_flush(&mut self, x: f64, y: f64, col: u32) -> KResult<()> {
+        if self.comp.queue.is_empty() {
+            return Ok(());
+        }
+        let ep = self.comp.endpoint;
+        let (ex, ey) = ep.unwrap_or((0.0, 0.0));
+        for p in &mut self.comp.queue {
+            match &mut p.call.canon {
+                Canon::ArcFeed(a) => {
+                    let c = (a.first_centre, a.second_centre);
+                    let r1 = (a.first_end - c.0).hypot(a.second_end - c.1);
+                    let r2 = (x - c.0).hypot(y - c.1);
+                    let l2 = find_turn((ex, ey), c, a.rotation, (x, y));
+                    if (r1 - r2).abs() > 0.01 {
+                        return Err(cc(col, "BUG: cutter compensation has generated an invalid arc"));
+                    }
+                    if p.sweep != 0.0 && ep.is_some() && l2.abs() > p.sweep.abs() + 0.001 {
+                        return Err(cc(
+                            col,
+                            "Arc move in concave corner cannot be reached by the tool without gouging",
+                        ));
+                    }
+                    a.first_end = x;
+                    a.second_end = y;
+                }
+                Canon::StraightTraverse { end } | Canon::StraightFeed { end } => {
+                    let dot = p.dir.0 * (x - ex) + p.dir.1 * (y - ey);
+                    if ep.is_some() && dot < 0.0 {
+                        return Err(cc(
+                            col,
+                            if matches!(p.call.canon, Canon::StraightTraverse { .. }) {
+                                "Straight traverse in concave corner cannot be reached by the tool without gouging"
+                            } else {
+                                "Straight feed in concave corner cannot be reached by the tool without gouging"
+                            },
+                        ));
+                    }
+                    if let Some(s) = end.get_mut(0) {
+                        *s = x;
+                    }
+                    if let Some(s) = end.get_mut(1) {
+                        *s = y;
+                    }
+                }
+                _ => {}
+            }
+        }
+        self.dequeue_canons();
+        self.comp.endpoint = Some((x, y));
+        Ok(())
+    }
+
+    fn enqueue(&mut self, canon: Canon, dir: (f64, f64), sweep: f64, feed: f64) {
+        let call = CanonCall { line: self.cur_line, n: self.cur_n, canon, machine: None };
+        self.comp.queue.push(Pending { call, dir, sweep, feed });
+    }
+
+    /// The rate of a compensated feed move (mm/min); inverse time is not supported.
+    fn comp_feed(&mut self, b: &Block, g: u8, col: u32) -> KResult<f64> {
+        if self.feed_mode == FeedMode::InverseTime {
+            return Err(cc(col, "Inverse time feed (G93) with cutter radius compensation is not supported"));
+        }
+        self.move_feed(0.0, b, g, col)
+    }
+
+    /// A compensated G0/G1 from the programmed point `self.pos` to the programmed `end`.
+    pub(super) fn comp_straight(&mut self, rapid: bool, b: &Block, end: Pose, col: u32) -> KResult<()> {
+        let feed = if rapid { 0.0 } else { self.comp_feed(b, 1, col)? };
+        let r = self.comp.radius;
+        let left = self.comp.side == Side::Left;
+        let [cx, cy, cz] = self.comp.cur;
+        let (px, py, pz) = (get(&end, 0), get(&end, 1), get(&end, 2));
+        let make = |x: f64, y: f64, z: f64| {
+            let e = with_xyz(&end, x, y, z);
+            if rapid {
+                Canon::StraightTraverse { end: e }
+            } else {
+                Canon::StraightFeed { end: e }
+            }
+        };
+        if self.comp.first_move {
+            if (px - cx).hypot(py - cy) <= r {
+                return Err(cc(
+                    col,
+                    "Length of cutter compensation entry move is not greater than the tool radius",
+                ));
+            }
+            let alpha = (py - cy).atan2(px - cx) + if left { FRAC_PI_2 } else { -FRAC_PI_2 };
+            let (ex, ey) = (px + r * alpha.cos(), py + r * alpha.sin());
+            self.comp.endpoint = Some((cx, cy));
+            self.enqueue(make(ex, ey, pz), (alpha.cos(), alpha.sin()), 0.0, feed);
+            self.comp.first_move = false;
+            self.comp.cur = [ex, ey, pz];
+            return Ok(());
+        }
+        let (opx, opy) = (get(&self.pos, 0), get(&self.pos, 1));
+        if px == opx && py == opy {
+            self.enqueue(make(cx, cy, pz), (0.0, 0.0), 0.0, feed);
+            self.comp.cur = [cx, cy, pz];
+            return Ok(());
+        }
+        let mut theta = (cy - opy).atan2(cx - opx);
+        let mut alpha = (py - opy).atan2(px - opx);
+        let (beta, gamma) = if left {
+            if theta < alpha {
+                theta += TAU;
+            }
+            (theta - alpha - FRAC_PI_2, FRAC_PI_2)
+        } else {
+            if alpha < theta {
+                alpha += TAU;
+            }
+            (alpha - theta - FRAC_PI_2, -FRAC_PI_2)
+        };
+        let (ex, ey) = (px + r * (alpha + gamma).cos(), py + r * (alpha + gamma).sin());
+        let (mx, my) = (opx + r * (alpha + gamma).cos(), opy + r * (alpha + gamma).sin());
+        let front_arc = match self.comp.queue.first().map(|p| &p.call.canon) {
+            Some(Canon::ArcFeed(a)) => Some(*a),
+            _ => None,
+        };
+        let concave = !(-SMALL..=PI + SMALL).contains(&beta)
+            || (beta > PI - SMALL
+                && front_arc.is_some_and(|a| (!left && a.rotation > 0) || (left && a.rotation < 0)));
+        if !concave && beta > SMALL {
+            // Convex corner: an arc about the programmed corner (G0: a straight traverse).
+            self.move_endpoint_and_flush(cx, cy, col)?;
+            let corner = if rapid {
+                Canon::StraightTraverse { end: with_xyz(&end, mx, my, cz) }
+            } else {
+                Canon::ArcFeed(ArcFeed {
+                    first_end: mx,
+                    second_end: my,
+                    first_centre: opx,
+                    second_centre: opy,
+                    rotation: if left { -1 } else { 1 },
+                    axis_end: cz,
+                    a: get(&end, 3),
+                    b: get(&end, 4),
+                    c: get(&end, 5),
+                })
+            };
+            self.enqueue(corner, (0.0, 0.0), 0.0, feed);
+            self.dequeue_canons();
+            self.comp.endpoint = Some((mx, my));
+        } else if concave {
+            if let Some(prev) = front_arc {
+                self.arc_to_line_corner(&prev, (opx, opy), (px, py), col)?;
+            } else {
+                let half = (beta + PI) / 2.0;
+                if half == 0.0 {
+                    return Err(cc(col, "Zero degree inside corner is invalid for cutter compensation"));
+                }
+                let retreat = r / half.tan();
+                let (qx, qy) = (cx + retreat * (theta + gamma).cos(), cy + retreat * (theta + gamma).sin());
+                self.move_endpoint_and_flush(qx, qy, col)?;
+            }
+        } else {
+            // Collinear, or a tangent arc to line.
+            self.dequeue_canons();
+            self.comp.endpoint = Some((cx, cy));
+        }
+        self.enqueue(make(ex, ey, pz), (px - opx, py - opy), 0.0, feed);
+        self.comp.cur = [ex, ey, pz];
+        Ok(())
+    }
+
+    /// A concave corner from the queued (compensated) arc `prev` to a line from `op` to `p`.
+    fn arc_to_line_corner(&mut self, prev: &ArcFeed, op: (f64, f64), p: (f64, f64), col: u32) -> KResult<()> {
+        let r = self.comp.radius;
+        let side = self.comp.side;
+        let oldrad = (prev.second_centre - prev.second_end).hypot(prev.first_centre - prev.first_end);
+        let base_dir = (p.1 - op.1).atan2(p.0 - op.0);
+        let theta = if prev.rotation > 0 { base_dir + FRAC_PI_2 } else { base_dir - FRAC_PI_2 };
+        let phi = (prev.second_centre - op.1).atan2(prev.first_centre - op.0);
+        let inside = tool_inside_arc(side, prev.rotation);
+        let oldrad_uncomp = if inside { oldrad + r } else { oldrad - r };
+        let d = oldrad_uncomp * (theta - phi).cos();
+        let msg = "Arc to straight motion makes a corner the compensated tool can't fit in without gouging";
+        let angle = if inside {
+            let l = (d - r) / oldrad;
+            if !(-1.0..=1.0).contains(&l) {
+                return Err(cc(col, msg));
+            }
+            if prev.rotation > 0 {
+                -l.acos() + theta + PI
+            } else {
+                l.acos() + theta + PI
+            }
+        } else {
+            let l = (d + r) / oldrad;
+            if !(-1.0..=1.0).contains(&l) {
+                return Err(cc(col, msg));
+            }
+            if prev.rotation > 0 {
+                l.acos() + theta + PI
+            } else {
+                -l.acos() + theta + PI
+            }
+        };
+        let mx = prev.first_centre + oldrad * angle.cos();
+        let my = prev.second_centre + oldrad * angle.sin();
+        self.move_endpoint_and_flush(mx, my, col)
+    }
+
+    /// A compensated G2/G3 from the programmed point `self.pos`: `centre` and `turn` are the
+    /// programmed arc's, `end` its programmed end.
+    pub(super) fn comp_arc(
+        &mut self,
+        b: &Block,
+        end: Pose,
+        centre: (f64, f64),
+        turn: i32,
+        col: u32,
+    ) -> KResult<()> {
+        let cw = turn < 0;
+        let feed = self.comp_feed(b, if cw { 2 } else { 3 }, col)?;
+        if self.comp.first_move {
+            return Err(cc(
+                col,
+                "An arc as the first move after G41/G42 is not supported: enter with a straight move",
+            ));
+        }
+        let r = self.comp.radius;
+        let side = self.comp.side;
+        let left = side == Side::Left;
+        let [cx, cy, cz] = self.comp.cur;
+        let (opx, opy) = (get(&self.pos, 0), get(&self.pos, 1));
+        let (ex, ey, ez) = (get(&end, 0), get(&end, 1), get(&end, 2));
+        let (ccx, ccy) = centre;
+        let arc_radius = (ccx - ex).hypot(ccy - ey);
+        let mut theta = (cy - opy).atan2(cx - opx);
+        theta = if left { theta - FRAC_PI_2 } else { theta + FRAC_PI_2 };
+        let mut delta = (ccy - opy).atan2(ccx - opx);
+        let alpha = if cw { delta + FRAC_PI_2 } else { delta - FRAC_PI_2 };
+        let mut beta = if left { theta - alpha } else { alpha - theta };
+        if beta > 1.5 * PI {
+            beta -= TAU;
+        } else if beta < -FRAC_PI_2 {
+            beta += TAU;
+        }
+        let inside = tool_inside_arc(side, turn);
+        let gamma = if (left && !cw) || (!left && cw) {
+            if arc_radius <= r {
+                return Err(cc(col, "Tool radius not less than arc radius with comp"));
+            }
+            (ccy - ey).atan2(ccx - ex)
+        } else {
+            delta += PI;
+            (ey - ccy).atan2(ex - ccx)
+        };
+        let (nx, ny) = (ex + r * gamma.cos(), ey + r * gamma.sin());
+        let main = Canon::ArcFeed(ArcFeed {
+            first_end: nx,
+            second_end: ny,
+            first_centre: ccx,
+            second_centre: ccy,
+            rotation: turn,
+            axis_end: ez,
+            a: get(&end, 3),
+            b: get(&end, 4),
+            c: get(&end, 5),
+        });
+        let sweep = find_turn((opx, opy), centre, turn, (ex, ey));
+        let front_arc = match self.comp.queue.first().map(|p| &p.call.canon) {
+            Some(Canon::ArcFeed(a)) => Some(*a),
+            _ => None,
+        };
+        if !(-SMALL..=PI + SMALL).contains(&beta) || ((beta - PI).abs() < SMALL && !inside) {
+            // Concave.
+            let (mx, my) = if let Some(prev) = front_arc {
+                let oldrad = (prev.second_centre - prev.second_end).hypot(prev.first_centre - prev.first_end);
+                let newrad = if inside { arc_radius - r } else { arc_radius + r };
+                let arc_cc = (prev.second_centre - ccy).hypot(prev.first_centre - ccx);
+                if oldrad == 0.0 || arc_cc == 0.0 {
+                    return Err(cc(
+                        col,
+                        "Arc to arc motion is invalid because the arcs have the same center",
+                    ));
+                }
+                let a = (oldrad * oldrad + arc_cc * arc_cc - newrad * newrad) / (2.0 * oldrad * arc_cc);
+                if !(-1.0..=1.0).contains(&a) {
+                    return Err(cc(
+                        col,
+                        "Arc to arc motion makes a corner the compensated tool can't fit in without gouging",
+                    ));
+                }
+                let pullback = a.acos();
+                let cc_dir = (ccy - prev.second_centre).atan2(ccx - prev.first_centre);
+                let dir = if tool_inside_arc(side, prev.rotation) == (turn > 0) {
+                    cc_dir + pullback
+                } else {
+                    cc_dir - pullback
+                };
+                (prev.first_centre + oldrad * dir.cos(), prev.second_centre + oldrad * dir.sin())
+            } else {
+                let cyv = arc_radius * (beta - FRAC_PI_2).sin();
+                let msg = "Arc move in concave corner cannot be reached by the tool without gouging";
+                let (dist, angle) = if inside {
+                    let dist = arc_radius - r;
+                    let l = (cyv + r) / dist;
+                    if !(-1.0..=1.0).contains(&l) {
+                        return Err(cc(col, msg));
+                    }
+                    (dist, if turn > 0 { theta + l.asin() } else { theta - l.asin() })
+                } else {
+                    let dist = arc_radius + r;
+                    let l = (cyv - r) / dist;
+                    if !(-1.0..=1.0).contains(&l) {
+                        return Err(cc(col, msg));
+                    }
+                    (dist, if turn > 0 { theta + PI - l.asin() } else { theta + PI + l.asin() })
+                };
+                (ccx + dist * angle.cos(), ccy + dist * angle.sin())
+            };
+            self.move_endpoint_and_flush(mx, my, col)?;
+            self.enqueue(main, (0.0, 0.0), sweep, feed);
+        } else if beta > SMALL {
+            // Convex: an arc about the programmed corner first.
+            let (mx, my) = (opx + r * delta.cos(), opy + r * delta.sin());
+            self.dequeue_canons();
+            self.enqueue(
+                Canon::ArcFeed(ArcFeed {
+                    first_end: mx,
+                    second_end: my,
+                    first_centre: opx,
+                    second_centre: opy,
+                    rotation: if left { -1 } else { 1 },
+                    axis_end: cz,
+                    a: get(&end, 3),
+                    b: get(&end, 4),
+                    c: get(&end, 5),
+                }),
+                (0.0, 0.0),
+                0.0,
+                feed,
+            );
+            self.dequeue_canons();
+            self.comp.endpoint = Some((mx, my));
+            self.enqueue(main, (0.0, 0.0), sweep, feed);
+        } else {
+            self.dequeue_canons();
+            self.comp.endpoint = Some((cx, cy));
+            self.enqueue(main, (0.0, 0.0), sweep, feed);
+        }
+        self.comp.cur = [nx, ny, ez];
+        Ok(())
+    }
+}
