@@ -237,7 +237,15 @@ impl<'a> Interpreter<'a> {
         }
     }
 
-    fn emit_move(&mut self, canon: Canon, m: MachineMove) {
+    fn emit_move(&mut self, canon: Canon, mut m: MachineMove) {
+        // The first move after G40 starts where the compensated tool is.
+        if let Some(at) = self.comp.exit_start.take() {
+            match &mut m {
+                MachineMove::Traverse { start, .. }
+                | MachineMove::Feed { start, .. }
+                | MachineMove::Arc { start, .. } => *start = at,
+            }
+        }
         self.out.push_back(CanonCall { line: self.cur_line, n: self.cur_n, canon, machine: Some(m) });
     }
 

@@ -22,9 +22,10 @@
 //!   wait behind the held-back move, as in LinuxCNC; M0/M1/M2 send it. LinuxCNC's errors
 //!   (gouging, tool too large for an arc, comp already on, G53, canned cycles, tool, offset,
 //!   plane, coordinate-system or path-control changes while on, ...) at the same line.
-//!   Not supported, with an error: an arc as the first move after G41/G42, comp in G18 (XZ),
-//!   G93 feed moves under comp, changing G20/G21 while on. `#<_ccomp>` is 400, 410, 411, 420
-//!   or 421; the position parameters (#5420-, `#<_x>`) stay the programmed point (LinuxCNC
+//!   An arc as the entry move follows LinuxCNC's too (an arc tangent to the tool at its
+//!   start, through the offset end point). Not supported, with an error: comp in G18 (XZ),
+//!   G93 feed moves under comp, changing G20/G21 while on. `#<_ccomp>` is 400, 410 (left)
+//!   or 420 (right); the position parameters (#5420-, `#<_x>`) stay the programmed point (LinuxCNC
 //!   shows the compensated one).
 //! * Feed modes G93 (inverse time: the rate is sent before each move), G94, G95 (per
 //!   revolution: planned with the S word, or G96's D limit), spindle modes G96/G97; every

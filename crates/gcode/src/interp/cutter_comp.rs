@@ -16,6 +16,9 @@ use crate::error::{ErrorKind, KResult};
 /// LinuxCNC's `TOLERANCE_CONCAVE_CORNER` (radians).
 const SMALL: f64 = 0.05;
 
+/// LinuxCNC's `TOLERANCE_EQUAL`.
+const TOLERANCE_EQUAL: f64 = 0.0001;
+
 /// The compensation side.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub(super) enum Side {
@@ -45,8 +48,6 @@ pub(super) struct Pending {
 #[derive(Debug, Clone, Default)]
 pub(super) struct CompState {
     pub(super) side: Side,
-    /// The code in force, ten times its number (400, 410, 411, 420, 421: `#<_ccomp>`).
-    pub(super) code: u16,
     radius: f64,
     first_move: bool,
     /// The compensated tool position (program units, X Y Z).
@@ -66,7 +67,17 @@ pub(super) struct CompState {
 impl CompState {
     /// G40 in force.
     pub(super) fn new() -> Self {
-        Self { code: g::G40, ..Self::default() }
+        Self::default()
+    }
+
+    /// `#<_ccomp>` as LinuxCNC sets it: 400 (off), 410 (left), 420 (right), G41.1/G42.1
+    /// included.
+    pub(super) fn ccomp(&self) -> f64 {
+        match self.side {
+            Side::Off => 400.0,
+            Side::Left => 410.0,
+            Side::Right => 420.0,
+        }
     }
 
     /// Compensation is on with a non-zero radius (moves are offset).
@@ -196,7 +207,6 @@ impl Interpreter<'_> {
         // A negative radius swaps the side.
         let side = if (radius < 0.0) == left { Side::Right } else { Side::Left };
         self.comp.side = side;
-        self.comp.code = code;
         self.comp.radius = radius.abs();
         self.comp.first_move = true;
         self.comp.cur = [get(&self.pos, 0), get(&self.pos, 1), get(&self.pos, 2)];
@@ -215,7 +225,6 @@ impl Interpreter<'_> {
             self.comp.arc_not_allowed = true;
         }
         self.comp.side = Side::Off;
-        self.comp.code = g::G40;
         self.comp.first_move = true;
         Ok(())
     }
@@ -465,6 +474,61 @@ impl Interpreter<'_> {
         self.move_endpoint_and_flush(mx, my, col)
     }
 
+    /// The first compensated move is an arc (LinuxCNC's `convert_arc_comp1`): the tool
+    /// follows an arc through the offset end point that is tangent to the tool at its start.
+    fn comp_entry_arc(
+        &mut self,
+        end: Pose,
+        centre: (f64, f64),
+        turn: i32,
+        feed: f64,
+        col: u32,
+    ) -> KResult<()> {
+        let r = self.comp.radius;
+        let side = self.comp.side;
+        let [cx, cy, _] = self.comp.cur;
+        let (ex, ey, ez) = (get(&end, 0), get(&end, 1), get(&end, 2));
+        if (ex - cx).hypot(ey - cy) <= r {
+            return Err(cc(
+                col,
+                "Radius of cutter compensation entry arc is not greater than the tool radius",
+            ));
+        }
+        let inside = tool_inside_arc(side, turn);
+        if inside && (centre.0 - cx).hypot(centre.1 - cy) <= r {
+            return Err(cc(col, "Tool radius not less than arc radius with comp"));
+        }
+        let gamma =
+            if inside { (centre.1 - ey).atan2(centre.0 - ex) } else { (ey - centre.1).atan2(ex - centre.0) };
+        let (nx, ny) = (ex + r * gamma.cos(), ey + r * gamma.sin());
+        // The new centre: on the line from the new end towards the programmed centre, as far
+        // from the start as from the new end.
+        let b_len = (cy - ny).hypot(cx - nx) / 2.0;
+        let ab_ang = (centre.1 - ny).atan2(centre.0 - nx);
+        let a_ang = (cy - ny).atan2(cx - nx) - ab_ang;
+        if a_ang.cos().abs() < TOLERANCE_EQUAL {
+            return Err(cc(col, "Tool radius not less than arc radius with comp"));
+        }
+        let c_len = b_len / a_ang.cos();
+        let (ncx, ncy) = (nx + c_len * ab_ang.cos(), ny + c_len * ab_ang.sin());
+        let sweep = find_turn((cx, cy), (ncx, ncy), turn, (nx, ny));
+        let arc = Canon::ArcFeed(ArcFeed {
+            first_end: nx,
+            second_end: ny,
+            first_centre: ncx,
+            second_centre: ncy,
+            rotation: turn,
+            axis_end: ez,
+            a: get(&end, 3),
+            b: get(&end, 4),
+            c: get(&end, 5),
+        });
+        self.enqueue(arc, (0.0, 0.0), sweep, feed);
+        self.comp.first_move = false;
+        self.comp.cur = [nx, ny, ez];
+        Ok(())
+    }
+
     /// A compensated G2/G3 from the programmed point `self.pos`: `centre` and `turn` are the
     /// programmed arc's, `end` its programmed end.
     pub(super) fn comp_arc(
@@ -478,10 +542,7 @@ impl Interpreter<'_> {
         let cw = turn < 0;
         let feed = self.comp_feed(b, if cw { 2 } else { 3 }, col)?;
         if self.comp.first_move {
-            return Err(cc(
-                col,
-                "An arc as the first move after G41/G42 is not supported: enter with a straight move",
-            ));
+            return self.comp_entry_arc(end, centre, turn, feed, col);
         }
         let r = self.comp.radius;
         let side = self.comp.side;
@@ -607,5 +668,105 @@ impl Interpreter<'_> {
         }
         self.comp.cur = [nx, ny, ez];
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic)]
+
+    use crate::canon::{Canon, MachineMove, Pose};
+    use crate::{interpret, CanonCall};
+
+    fn machine_moves(calls: &[CanonCall]) -> Vec<(Pose, Pose)> {
+        calls
+            .iter()
+            .filter_map(|c| match c.machine {
+                Some(
+                    MachineMove::Traverse { start, end }
+                    | MachineMove::Feed { start, end, .. }
+                    | MachineMove::Arc { start, end, .. },
+                ) => Some((start, end)),
+                None => None,
+            })
+            .collect()
+    }
+
+    /// Distance from `p` to the segment `a`-`b`.
+    fn to_segment(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
+        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let t = (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / (dx * dx + dy * dy)).clamp(0.0, 1.0);
+        (p.0 - a.0 - t * dx).hypot(p.1 - a.1 - t * dy)
+    }
+
+    const SQUARE: &str = "G21 G90 F100\nG0 X-10 Y-10\nG41.1 D4 G1 X0 Y0\nG1 Y20\nG1 X20\nG1 Y0\nG1 X0\n\
+                          G1 X0 Y20\nG40 G1 X-10 Y30\nM2\n";
+
+    #[test]
+    fn machine_moves_are_continuous_through_the_queue_and_the_exit() {
+        for src in [
+            SQUARE,
+            "G20 G90 F10\nG0 X0 Y0 Z1\nG41.1 D0.25 G1 X1 Y0\nG1 Z-0.1\nG3 X2 Y1 R1\nG1 Y2\nG0 X0\nG2 X-1 Y1 R1\n\
+             G1 Y0.5\nG40 G0 X-2 Y-2\nG1 X0 Y0\nM2\n",
+        ] {
+            let calls = interpret(src).unwrap();
+            let moves = machine_moves(&calls);
+            assert!(moves.len() > 6);
+            for w in moves.windows(2) {
+                for k in 0..6 {
+                    assert!((w[0].1[k] - w[1].0[k]).abs() < 1e-9, "{src}: {:?} then {:?}", w[0], w[1]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn outside_square_keeps_the_tool_a_radius_away_from_the_part() {
+        let calls = interpret(SQUARE).unwrap();
+        let part = [(0.0, 0.0), (0.0, 20.0), (20.0, 20.0), (20.0, 0.0), (0.0, 0.0)];
+        let ends: Vec<(f64, f64)> = calls
+            .iter()
+            .filter_map(|c| match &c.canon {
+                Canon::StraightFeed { end } => Some((end[0], end[1])),
+                Canon::ArcFeed(a) => Some((a.first_end, a.second_end)),
+                _ => None,
+            })
+            .collect();
+        // Entry, then four sides with a corner arc before each new side, then the exit.
+        let on_path = &ends[1..ends.len() - 1];
+        assert!(on_path.len() >= 8);
+        for p in on_path {
+            let d = part.windows(2).map(|s| to_segment(*p, s[0], s[1])).fold(f64::INFINITY, f64::min);
+            assert!((d - 2.0).abs() < 1e-9, "{p:?} is {d} from the part");
+            // Outside (G41 going clockwise).
+            assert!(!(p.0 > 0.0 && p.0 < 20.0 && p.1 > 0.0 && p.1 < 20.0), "{p:?} inside");
+        }
+    }
+
+    #[test]
+    fn ccomp_parameter_follows_the_code() {
+        let src = "G21 F100\nG0 X0 Y0\n(DEBUG,#<_ccomp>)\nG41.1 D2 G1 X10\n(DEBUG,#<_ccomp>)\nG40 G1 X20\n\
+                   G42 G1 X30\n(DEBUG,#<_ccomp>)\nG40\n(DEBUG,#<_ccomp>)\n\
+                   G42.1 D2 G1 X40\n(DEBUG,#<_ccomp>)\nG40 X50\nM2\n";
+        let texts: Vec<String> = interpret(src)
+            .unwrap()
+            .into_iter()
+            .filter_map(|c| match c.canon {
+                Canon::Message { text } => Some(text),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(texts, ["400.000000", "410.000000", "420.000000", "400.000000", "420.000000"]);
+    }
+
+    #[test]
+    fn calls_wait_behind_the_held_move() {
+        let calls = interpret("G21 F100\nG0 X-10 Y0\nG41.1 D2 G1 X0\nG1 X10 F200\nG40 G1 X20\nM2\n").unwrap();
+        let line_of = |pred: &dyn Fn(&Canon) -> bool| calls.iter().position(|c| pred(&c.canon)).unwrap();
+        let feed_200 = line_of(&|c| matches!(c, Canon::SetFeedRate { rate } if *rate == 200.0));
+        let entry = line_of(&|c| matches!(c, Canon::StraightFeed { .. }));
+        assert!(entry < feed_200, "the entry move is sent before line 4's feed rate");
+        assert_eq!(calls[feed_200].line, 4);
+        assert_eq!(calls[entry].line, 3);
     }
 }

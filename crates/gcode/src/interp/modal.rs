@@ -375,7 +375,6 @@ impl Interpreter<'_> {
 
     fn program_end(&mut self, pallet: bool) {
         self.comp.side = super::cutter_comp::Side::Off;
-        self.comp.code = g::G40;
         self.select_coord(0);
         self.emit(Canon::SetXyRotation { degrees: 0.0 });
         if self.plane != Plane::Xy {

@@ -119,7 +119,7 @@ impl Interpreter<'_> {
                 return Ok(());
             }
         }
-        let ms = self.comp.exit_start.take().unwrap_or_else(|| self.to_machine(&start));
+        let ms = self.to_machine(&start);
         let me = self.to_machine(&end);
         match m {
             Motion::Rapid => {

@@ -85,8 +85,8 @@ impl Interpreter<'_> {
             flag(self.feed_mode == FeedMode::InverseTime),
             flag(self.feed_mode == FeedMode::PerMinute),
             flag(self.feed_mode == FeedMode::PerRevolution),
-            // Cutter compensation: 400 (G40), 410, 411, 420, 421.
-            f64::from(self.comp.code),
+            // Cutter compensation: 400 (G40), 410 (left), 420 (right).
+            self.comp.ccomp(),
             // Radius mode (G8).
             0.0,
             1.0,
