@@ -23,10 +23,13 @@
 //!   (gouging, tool too large for an arc, comp already on, G53, canned cycles, tool, offset,
 //!   plane, coordinate-system or path-control changes while on, ...) at the same line.
 //!   An arc as the entry move follows LinuxCNC's too (an arc tangent to the tool at its
-//!   start, through the offset end point). Not supported, with an error: comp in G18 (XZ),
-//!   G93 feed moves under comp, changing G20/G21 while on. `#<_ccomp>` is 400, 410 (left)
-//!   or 420 (right); the position parameters (#5420-, `#<_x>`) stay the programmed point (LinuxCNC
-//!   shows the compensated one).
+//!   start, through the offset end point). G18 (XZ, the lathe plane) works the same way with Z
+//!   and X as the plane's first and second coordinates; G93 rates are the programmed
+//!   move's, as LinuxCNC sends them. Not supported, with an error: lathe tool orientations
+//!   1-8 under G18 (the tool's origin shift), G41.1/G42.1's L word, changing G20/G21 while
+//!   comp is on. `#<_ccomp>` is 400, 410 (left)
+//!   or 420 (right); the position parameters (#5420-, `#<_x>`, `#<_abs_x>`) give the compensated
+//!   tool's position, as LinuxCNC's do.
 //! * Feed modes G93 (inverse time: the rate is sent before each move), G94, G95 (per
 //!   revolution: planned with the S word, or G96's D limit), spindle modes G96/G97; every
 //!   feed move's [`MachineMove`] carries its rate in mm/min.

@@ -7,7 +7,7 @@
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
-use super::feed::FeedMode;
+use super::motion::{arc_length, straight_length};
 use super::Interpreter;
 use crate::block::{g, Block};
 use crate::canon::{ArcFeed, Canon, CanonCall, MachineMove, Plane, Pose};
@@ -49,6 +49,8 @@ pub(super) struct Pending {
 pub(super) struct CompState {
     pub(super) side: Side,
     radius: f64,
+    /// The tool's orientation (lathe tools 1-8; 0 or 9 for a mill).
+    orientation: u8,
     first_move: bool,
     /// The compensated tool position (program units, X Y Z).
     cur: [f64; 3],
@@ -145,10 +147,19 @@ fn get(p: &Pose, k: usize) -> f64 {
     p.get(k).copied().unwrap_or(0.0)
 }
 
-/// A pose with X, Y (and Z) replaced.
-fn with_xyz(p: &Pose, x: f64, y: f64, z: f64) -> Pose {
+/// Plane indices: first, second coordinate and the axis (X, Y, Z under G17; Z, X, Y under
+/// G18), as `Plane::axes` gives them.
+type Axes = (usize, usize, usize);
+
+/// A pose's coordinates in the plane (first, second, axis).
+fn plane3(axes: Axes, p: &Pose) -> (f64, f64, f64) {
+    (get(p, axes.0), get(p, axes.1), get(p, axes.2))
+}
+
+/// A pose with its plane coordinates (first, second, axis) replaced.
+fn with_plane(axes: Axes, p: &Pose, x: f64, y: f64, z: f64) -> Pose {
     let mut q = *p;
-    for (k, v) in [(0, x), (1, y), (2, z)] {
+    for (k, v) in [(axes.0, x), (axes.1, y), (axes.2, z)] {
         if let Some(s) = q.get_mut(k) {
             *s = v;
         }
@@ -168,11 +179,8 @@ impl Interpreter<'_> {
             self.cutter_comp_off(col)?;
             return Ok(());
         }
-        if self.plane != Plane::Xy {
-            if self.plane == Plane::Yz {
-                return Err(cc(col, "Cutter radius compensation allowed only in XY, XZ planes"));
-            }
-            return Err(cc(col, "Cutter radius compensation in the XZ plane (G18) is not supported"));
+        if self.plane == Plane::Yz {
+            return Err(cc(col, "Cutter radius compensation allowed only in XY, XZ planes"));
         }
         if self.comp.on() {
             return Err(cc(col, "Cannot turn cutter radius comp on when on"));
@@ -183,9 +191,9 @@ impl Interpreter<'_> {
             g::G41_1 => "G41.1",
             _ => "G42.1",
         };
-        let radius = if code == g::G41_1 || code == g::G42_1 {
+        let (radius, orientation) = if code == g::G41_1 || code == g::G42_1 {
             let d = b.d.ok_or((col, ErrorKind::CompNoD(name)))?;
-            d / 2.0
+            (d / 2.0, 0)
         } else {
             let index = match b.d {
                 None => 0,
@@ -199,17 +207,27 @@ impl Interpreter<'_> {
                 }
             };
             let index = if index == 0 { self.tool.current.1 } else { index };
-            let diameter_mm =
-                index.checked_sub(1).and_then(|i| self.config.tools.get(i)).map_or(0.0, |t| t.diameter);
-            diameter_mm / self.units.mm_per_unit() / 2.0
+            let (diameter_mm, orientation) = index
+                .checked_sub(1)
+                .and_then(|i| self.config.tools.get(i))
+                .map_or((0.0, 0), |t| (t.diameter, t.orientation));
+            (diameter_mm / self.units.mm_per_unit() / 2.0, orientation)
         };
+        if self.plane == Plane::Xz && !matches!(orientation, 0 | 9) {
+            return Err(cc(
+                col,
+                "Cutter radius compensation with a lathe tool orientation (1-8) is not supported",
+            ));
+        }
         let left = code == g::G41 || code == g::G41_1;
         // A negative radius swaps the side.
         let side = if (radius < 0.0) == left { Side::Right } else { Side::Left };
         self.comp.side = side;
         self.comp.radius = radius.abs();
+        self.comp.orientation = orientation;
         self.comp.first_move = true;
-        self.comp.cur = [get(&self.pos, 0), get(&self.pos, 1), get(&self.pos, 2)];
+        let (x, y, z) = plane3(self.plane.axes(), &self.pos);
+        self.comp.cur = [x, y, z];
         self.comp.sent = self.pos;
         self.comp.endpoint = None;
         Ok(())
@@ -229,9 +247,21 @@ impl Interpreter<'_> {
         Ok(())
     }
 
+    /// The position LinuxCNC reports (#5420-, `#<_x>`): the compensated tool's when
+    /// compensation is active, else the programmed point.
+    pub(super) fn comp_tool_position(&self) -> Pose {
+        if self.comp.active() {
+            let [x, y, z] = self.comp.cur;
+            with_plane(self.plane.axes(), &self.pos, x, y, z)
+        } else {
+            self.pos
+        }
+    }
+
     /// Sends the queue (LinuxCNC's `dequeue_canons`).
     pub(super) fn dequeue_canons(&mut self) {
         self.comp.endpoint = None;
+        let axes = self.plane.axes();
         let queue = std::mem::take(&mut self.comp.queue);
         for p in queue {
             let mut call = p.call;
@@ -248,15 +278,26 @@ impl Interpreter<'_> {
                     self.comp.sent = *end;
                 }
                 Canon::ArcFeed(a) => {
-                    let end = [a.first_end, a.second_end, a.axis_end, a.a, a.b, a.c];
+                    let end = with_plane(
+                        axes,
+                        &[0.0, 0.0, 0.0, a.a, a.b, a.c],
+                        a.first_end,
+                        a.second_end,
+                        a.axis_end,
+                    );
                     let me = self.to_machine(&end);
-                    let mc =
-                        self.to_machine(&with_xyz(&start, a.first_centre, a.second_centre, get(&start, 2)));
+                    let mc = self.to_machine(&with_plane(
+                        axes,
+                        &start,
+                        a.first_centre,
+                        a.second_centre,
+                        get(&start, axes.2),
+                    ));
                     call.machine = Some(MachineMove::Arc {
                         start: ms,
                         end: me,
                         centre: [get(&mc, 0), get(&mc, 1), get(&mc, 2)],
-                        plane: Plane::Xy,
+                        plane: self.plane,
                         rotation: a.rotation,
                         feed: p.feed,
                     });
@@ -275,6 +316,7 @@ impl Interpreter<'_> {
             return Ok(());
         }
         let ep = self.comp.endpoint;
+        let (f, s) = (self.plane.axes().0, self.plane.axes().1);
         let (ex, ey) = ep.unwrap_or((0.0, 0.0));
         for p in &mut self.comp.queue {
             match &mut p.call.canon {
@@ -307,11 +349,11 @@ impl Interpreter<'_> {
                             },
                         ));
                     }
-                    if let Some(s) = end.get_mut(0) {
-                        *s = x;
+                    if let Some(v) = end.get_mut(f) {
+                        *v = x;
                     }
-                    if let Some(s) = end.get_mut(1) {
-                        *s = y;
+                    if let Some(v) = end.get_mut(s) {
+                        *v = y;
                     }
                 }
                 _ => {}
@@ -327,23 +369,17 @@ impl Interpreter<'_> {
         self.comp.queue.push(Pending { call, dir, sweep, feed });
     }
 
-    /// The rate of a compensated feed move (mm/min); inverse time is not supported.
-    fn comp_feed(&mut self, b: &Block, g: u8, col: u32) -> KResult<f64> {
-        if self.feed_mode == FeedMode::InverseTime {
-            return Err(cc(col, "Inverse time feed (G93) with cutter radius compensation is not supported"));
-        }
-        self.move_feed(0.0, b, g, col)
-    }
-
     /// A compensated G0/G1 from the programmed point `self.pos` to the programmed `end`.
     pub(super) fn comp_straight(&mut self, rapid: bool, b: &Block, end: Pose, col: u32) -> KResult<()> {
-        let feed = if rapid { 0.0 } else { self.comp_feed(b, 1, col)? };
+        // Under G93 the rate is the programmed move's (LinuxCNC's), sent behind the held move.
+        let feed = if rapid { 0.0 } else { self.move_feed(straight_length(&self.pos, &end), b, 1, col)? };
         let r = self.comp.radius;
         let left = self.comp.side == Side::Left;
         let [cx, cy, cz] = self.comp.cur;
-        let (px, py, pz) = (get(&end, 0), get(&end, 1), get(&end, 2));
+        let axes = self.plane.axes();
+        let (px, py, pz) = plane3(axes, &end);
         let make = |x: f64, y: f64, z: f64| {
-            let e = with_xyz(&end, x, y, z);
+            let e = with_plane(axes, &end, x, y, z);
             if rapid {
                 Canon::StraightTraverse { end: e }
             } else {
@@ -365,7 +401,7 @@ impl Interpreter<'_> {
             self.comp.cur = [ex, ey, pz];
             return Ok(());
         }
-        let (opx, opy) = (get(&self.pos, 0), get(&self.pos, 1));
+        let (opx, opy, _) = plane3(axes, &self.pos);
         if px == opx && py == opy {
             self.enqueue(make(cx, cy, pz), (0.0, 0.0), 0.0, feed);
             self.comp.cur = [cx, cy, pz];
@@ -397,7 +433,7 @@ impl Interpreter<'_> {
             // Convex corner: an arc about the programmed corner (G0: a straight traverse).
             self.move_endpoint_and_flush(cx, cy, col)?;
             let corner = if rapid {
-                Canon::StraightTraverse { end: with_xyz(&end, mx, my, cz) }
+                Canon::StraightTraverse { end: with_plane(axes, &end, mx, my, cz) }
             } else {
                 Canon::ArcFeed(ArcFeed {
                     first_end: mx,
@@ -486,8 +522,9 @@ impl Interpreter<'_> {
     ) -> KResult<()> {
         let r = self.comp.radius;
         let side = self.comp.side;
-        let [cx, cy, _] = self.comp.cur;
-        let (ex, ey, ez) = (get(&end, 0), get(&end, 1), get(&end, 2));
+        let [cx, cy, cz] = self.comp.cur;
+        let axes = self.plane.axes();
+        let (ex, ey, ez) = plane3(axes, &end);
         if (ex - cx).hypot(ey - cy) <= r {
             return Err(cc(
                 col,
@@ -512,6 +549,12 @@ impl Interpreter<'_> {
         let c_len = b_len / a_ang.cos();
         let (ncx, ncy) = (nx + c_len * ab_ang.cos(), ny + c_len * ab_ang.sin());
         let sweep = find_turn((cx, cy), (ncx, ncy), turn, (nx, ny));
+        if !matches!(self.comp.orientation, 0 | 9) {
+            // LinuxCNC moves a lathe tool's origin first (a move to where it is).
+            let at = with_plane(axes, &end, cx, cy, cz);
+            self.enqueue(Canon::StraightFeed { end: at }, (0.0, 0.0), 0.0, feed);
+            self.comp.endpoint = Some((cx, cy));
+        }
         let arc = Canon::ArcFeed(ArcFeed {
             first_end: nx,
             second_end: ny,
@@ -540,7 +583,9 @@ impl Interpreter<'_> {
         col: u32,
     ) -> KResult<()> {
         let cw = turn < 0;
-        let feed = self.comp_feed(b, if cw { 2 } else { 3 }, col)?;
+        let (st, en) = (plane3(self.plane.axes(), &self.pos), plane3(self.plane.axes(), &end));
+        let length = arc_length((st.0, st.1), (en.0, en.1), centre, turn, en.2 - st.2);
+        let feed = self.move_feed(length, b, if cw { 2 } else { 3 }, col)?;
         if self.comp.first_move {
             return self.comp_entry_arc(end, centre, turn, feed, col);
         }
@@ -548,8 +593,9 @@ impl Interpreter<'_> {
         let side = self.comp.side;
         let left = side == Side::Left;
         let [cx, cy, cz] = self.comp.cur;
-        let (opx, opy) = (get(&self.pos, 0), get(&self.pos, 1));
-        let (ex, ey, ez) = (get(&end, 0), get(&end, 1), get(&end, 2));
+        let axes = self.plane.axes();
+        let (opx, opy, _) = plane3(axes, &self.pos);
+        let (ex, ey, ez) = plane3(axes, &end);
         let (ccx, ccy) = centre;
         let arc_radius = (ccx - ex).hypot(ccy - ey);
         let mut theta = (cy - opy).atan2(cx - opx);
