@@ -69,6 +69,12 @@ pub enum ErrorKind {
     /// G41.1/G42.1 without the D word (the diameter).
     #[error("{0} with no D word")]
     CompNoD(&'static str),
+    /// G41.1/G42.1 with an L word (a lathe tool orientation) outside G18.
+    #[error("{0} with L word, but plane is not G18")]
+    CompLWordNotG18(&'static str),
+    /// G41/G42 D naming a lathe tool (orientation 1-8) outside G18.
+    #[error("{0} with lathe tool, but plane is not G18")]
+    CompLatheToolNotG18(&'static str),
     /// G41/G42 with a D word that is not a whole, non-negative tool number.
     #[error("{0} requires D word to be a whole number")]
     CompDNotWhole(&'static str),

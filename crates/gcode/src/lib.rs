@@ -19,15 +19,15 @@
 //!   arc about the corner (G0: a straight traverse); the entry move ends a radius beside its
 //!   programmed end, square to the move; after G40 the next move starts from the
 //!   compensated point and must be straight. Feed, spindle, coolant, dwell and comment calls
-//!   wait behind the held-back move, as in LinuxCNC; M0/M1/M2 send it. LinuxCNC's errors
+//!   wait behind the held-back move, as in LinuxCNC; M0/M1/M2/M30 send it. LinuxCNC's errors
 //!   (gouging, tool too large for an arc, comp already on, G53, canned cycles, tool, offset,
 //!   plane, coordinate-system or path-control changes while on, ...) at the same line.
 //!   An arc as the entry move follows LinuxCNC's too (an arc tangent to the tool at its
 //!   start, through the offset end point). G18 (XZ, the lathe plane) works the same way with Z
 //!   and X as the plane's first and second coordinates; G93 rates are the programmed
-//!   move's, as LinuxCNC sends them. Not supported, with an error: lathe tool orientations
-//!   1-8 under G18 (the tool's origin shift), G41.1/G42.1's L word, changing G20/G21 while
-//!   comp is on. `#<_ccomp>` is 400, 410 (left)
+//!   move's, as LinuxCNC sends them. G20/G21 while moves are held scales them as LinuxCNC's
+//!   `qc_scale` does. Not supported, with an error: lathe tool orientations 1-8 under G18
+//!   (the tool's origin shift). `#<_ccomp>` is 400, 410 (left)
 //!   or 420 (right); the position parameters (#5420-, `#<_x>`, `#<_abs_x>`) give the compensated
 //!   tool's position, as LinuxCNC's do.
 //! * Feed modes G93 (inverse time: the rate is sent before each move), G94, G95 (per

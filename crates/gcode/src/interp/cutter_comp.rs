@@ -16,8 +16,8 @@ use crate::error::{ErrorKind, KResult};
 /// LinuxCNC's `TOLERANCE_CONCAVE_CORNER` (radians).
 const SMALL: f64 = 0.05;
 
-/// LinuxCNC's `TOLERANCE_EQUAL`.
-const TOLERANCE_EQUAL: f64 = 0.0001;
+/// LinuxCNC's `TOLERANCE_EQUAL` (2.9).
+const TOLERANCE_EQUAL: f64 = 1e-6;
 
 /// The compensation side.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -62,6 +62,8 @@ pub(super) struct CompState {
     pub(super) arc_not_allowed: bool,
     /// Where the tool is after the last move sent (program units).
     sent: Pose,
+    /// The first call of the last queue sent, if an arc (see `stale_front_arc`).
+    last_front: Option<ArcFeed>,
     /// After G40: the tool's machine position, the start of the next move.
     pub(super) exit_start: Option<Pose>,
 }
@@ -85,6 +87,24 @@ impl CompState {
     /// Compensation is on with a non-zero radius (moves are offset).
     pub(super) fn active(&self) -> bool {
         self.side != Side::Off && self.radius > 0.0
+    }
+
+    /// The first queued call, if it is an arc.
+    fn front_arc(&self) -> Option<ArcFeed> {
+        match self.queue.first().map(|p| &p.call.canon) {
+            Some(Canon::ArcFeed(a)) => Some(*a),
+            _ => None,
+        }
+    }
+
+    /// As [`CompState::front_arc`], but when the queue is empty (after M0/M1) LinuxCNC
+    /// reads its vector's first slot anyway: the first call of the last queue sent.
+    fn stale_front_arc(&self) -> Option<ArcFeed> {
+        if self.queue.is_empty() {
+            self.last_front
+        } else {
+            self.front_arc()
+        }
     }
 
     /// Holds a non-motion call behind the queued moves.
@@ -193,7 +213,20 @@ impl Interpreter<'_> {
         };
         let (radius, orientation) = if code == g::G41_1 || code == g::G42_1 {
             let d = b.d.ok_or((col, ErrorKind::CompNoD(name)))?;
-            (d / 2.0, 0)
+            let orientation = match b.l {
+                None => 0,
+                Some(_) if self.plane != Plane::Xz => return Err((col, ErrorKind::CompLWordNotG18(name))),
+                Some(l) => {
+                    let r = crate::expr::round(l);
+                    // Only 0 and 9 (no lathe origin shift) are supported below.
+                    if r == 0.0 || r == 9.0 {
+                        r as u8
+                    } else {
+                        1
+                    }
+                }
+            };
+            (d / 2.0, orientation)
         } else {
             let index = match b.d {
                 None => 0,
@@ -211,6 +244,9 @@ impl Interpreter<'_> {
                 .checked_sub(1)
                 .and_then(|i| self.config.tools.get(i))
                 .map_or((0.0, 0), |t| (t.diameter, t.orientation));
+            if self.plane != Plane::Xz && !matches!(orientation, 0 | 9) {
+                return Err((col, ErrorKind::CompLatheToolNotG18(name)));
+            }
             (diameter_mm / self.units.mm_per_unit() / 2.0, orientation)
         };
         if self.plane == Plane::Xz && !matches!(orientation, 0 | 9) {
@@ -236,7 +272,7 @@ impl Interpreter<'_> {
     /// G40 (and the program end): sends what is queued; the next move starts from the
     /// tool's compensated position.
     pub(super) fn cutter_comp_off(&mut self, col: u32) -> KResult<()> {
-        if self.comp.active() {
+        if self.comp.active() && !self.comp.first_move {
             let [cx, cy, _] = self.comp.cur;
             self.move_endpoint_and_flush(cx, cy, col)?;
             self.comp.exit_start = Some(self.to_machine(&self.comp.sent));
@@ -258,10 +294,64 @@ impl Interpreter<'_> {
         }
     }
 
+    /// Before M0, M1, M2 or M30: the held-back moves end where the tool is, and are sent.
+    pub(super) fn comp_flush_for_stop(&mut self, col: u32) -> KResult<()> {
+        let [cx, cy, _] = self.comp.cur;
+        self.move_endpoint_and_flush(cx, cy, col)?;
+        self.dequeue_canons();
+        Ok(())
+    }
+
+    /// G20/G21 while moves are held: LinuxCNC's `qc_scale` (which scales its `endpoint`
+    /// once per queued call) and the radius, the tool and the sent positions by `factor`.
+    pub(super) fn comp_scale(&mut self, factor: f64) {
+        let c = &mut self.comp;
+        for v in c.cur.iter_mut() {
+            *v *= factor;
+        }
+        for v in c.sent.iter_mut().take(3) {
+            *v *= factor;
+        }
+        c.radius *= factor;
+        if c.queue.is_empty() {
+            return;
+        }
+        if let Some((x, y)) = c.endpoint.as_mut() {
+            for _ in 0..c.queue.len() {
+                *x *= factor;
+                *y *= factor;
+            }
+        }
+        for p in &mut c.queue {
+            match &mut p.call.canon {
+                Canon::StraightFeed { end } | Canon::StraightTraverse { end } => {
+                    for v in end.iter_mut().take(3) {
+                        *v *= factor;
+                    }
+                }
+                Canon::ArcFeed(a) => {
+                    for v in [
+                        &mut a.first_end,
+                        &mut a.second_end,
+                        &mut a.axis_end,
+                        &mut a.first_centre,
+                        &mut a.second_centre,
+                    ] {
+                        *v *= factor;
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+
     /// Sends the queue (LinuxCNC's `dequeue_canons`).
     pub(super) fn dequeue_canons(&mut self) {
         self.comp.endpoint = None;
         let axes = self.plane.axes();
+        if !self.comp.queue.is_empty() {
+            self.comp.last_front = self.comp.front_arc();
+        }
         let queue = std::mem::take(&mut self.comp.queue);
         for p in queue {
             let mut call = p.call;
@@ -316,6 +406,11 @@ impl Interpreter<'_> {
             return Ok(());
         }
         let ep = self.comp.endpoint;
+        // LinuxCNC 2.9's allowance for an arc made longer by the new end point (radians).
+        let sweep_slack = match self.units {
+            crate::canon::Units::Mm => 0.0254,
+            crate::canon::Units::Inch => 0.001,
+        };
         let (f, s) = (self.plane.axes().0, self.plane.axes().1);
         let (ex, ey) = ep.unwrap_or((0.0, 0.0));
         for p in &mut self.comp.queue {
@@ -328,7 +423,7 @@ impl Interpreter<'_> {
                     if (r1 - r2).abs() > 0.01 {
                         return Err(cc(col, "BUG: cutter compensation has generated an invalid arc"));
                     }
-                    if p.sweep != 0.0 && ep.is_some() && l2.abs() > p.sweep.abs() + 0.001 {
+                    if p.sweep != 0.0 && ep.is_some() && l2.abs() > p.sweep.abs() + sweep_slack {
                         return Err(cc(
                             col,
                             "Arc move in concave corner cannot be reached by the tool without gouging",
@@ -422,10 +517,7 @@ impl Interpreter<'_> {
         };
         let (ex, ey) = (px + r * (alpha + gamma).cos(), py + r * (alpha + gamma).sin());
         let (mx, my) = (opx + r * (alpha + gamma).cos(), opy + r * (alpha + gamma).sin());
-        let front_arc = match self.comp.queue.first().map(|p| &p.call.canon) {
-            Some(Canon::ArcFeed(a)) => Some(*a),
-            _ => None,
-        };
+        let front_arc = self.comp.front_arc();
         let concave = !(-SMALL..=PI + SMALL).contains(&beta)
             || (beta > PI - SMALL
                 && front_arc.is_some_and(|a| (!left && a.rotation > 0) || (left && a.rotation < 0)));
@@ -451,7 +543,7 @@ impl Interpreter<'_> {
             self.dequeue_canons();
             self.comp.endpoint = Some((mx, my));
         } else if concave {
-            if let Some(prev) = front_arc {
+            if let Some(prev) = self.comp.stale_front_arc() {
                 self.arc_to_line_corner(&prev, (opx, opy), (px, py), col)?;
             } else {
                 let half = (beta + PI) / 2.0;
@@ -631,13 +723,9 @@ impl Interpreter<'_> {
             c: get(&end, 5),
         });
         let sweep = find_turn((opx, opy), centre, turn, (ex, ey));
-        let front_arc = match self.comp.queue.first().map(|p| &p.call.canon) {
-            Some(Canon::ArcFeed(a)) => Some(*a),
-            _ => None,
-        };
         if !(-SMALL..=PI + SMALL).contains(&beta) || ((beta - PI).abs() < SMALL && !inside) {
             // Concave.
-            let (mx, my) = if let Some(prev) = front_arc {
+            let (mx, my) = if let Some(prev) = self.comp.stale_front_arc() {
                 let oldrad = (prev.second_centre - prev.second_end).hypot(prev.first_centre - prev.first_end);
                 let newrad = if inside { arc_radius - r } else { arc_radius + r };
                 let arc_cc = (prev.second_centre - ccy).hypot(prev.first_centre - ccx);

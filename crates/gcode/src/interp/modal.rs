@@ -91,13 +91,10 @@ impl Interpreter<'_> {
             self.plane = plane;
             self.emit(Canon::SelectPlane { plane: self.plane });
         }
-        if let Some((code, col)) = gcode(6) {
+        if let Some((code, _)) = gcode(6) {
             let units = if code == g::G20 { Units::Inch } else { Units::Mm };
-            if self.comp.on() && units != self.units {
-                return Err(comp_err(
-                    col,
-                    "Changing units with cutter radius compensation on is not supported",
-                ));
+            if units != self.units {
+                self.comp_scale(if units == Units::Inch { 1.0 / 25.4 } else { 25.4 });
             }
             self.set_units(units);
         }
@@ -249,7 +246,7 @@ impl Interpreter<'_> {
         }
         if b.m_stop.is_some() {
             // LinuxCNC sends the held-back compensated move before a stop or the end.
-            self.dequeue_canons();
+            self.comp_flush_for_stop(b.first_col)?;
         }
         match b.m_stop {
             Some(0) => self.emit(Canon::ProgramStop),
@@ -304,7 +301,8 @@ impl Interpreter<'_> {
             missing(arc || cycle || modal0 == Some(g::G10), 'R', "G2, G3, G10 or canned cycle")?;
         }
         if b.l.is_some() {
-            missing(cycle || modal0 == Some(g::G10), 'L', "G10 or canned cycle")?;
+            let comp_l = matches!(code(7), Some(g::G41_1 | g::G42_1));
+            missing(cycle || comp_l || modal0 == Some(g::G10), 'L', "G10 or canned cycle")?;
         }
         if b.h.is_some() {
             missing(tool == Some(g::G43), 'H', "G43")?;
