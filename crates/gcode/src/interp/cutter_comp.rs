@@ -42,6 +42,9 @@ pub(super) struct Pending {
     sweep: f64,
     /// Feed moves: the rate in mm/min.
     feed: f64,
+    /// A place holder for one of LinuxCNC's "interpreter: ..." comments (not sent: it only
+    /// counts in `qc_scale`).
+    phantom: bool,
 }
 
 /// Cutter compensation state.
@@ -109,7 +112,17 @@ impl CompState {
 
     /// Holds a non-motion call behind the queued moves.
     pub(super) fn hold(&mut self, call: CanonCall) {
-        self.queue.push(Pending { call, dir: (0.0, 0.0), sweep: 0.0, feed: 0.0 });
+        self.queue.push(Pending { call, dir: (0.0, 0.0), sweep: 0.0, feed: 0.0, phantom: false });
+    }
+
+    /// Where LinuxCNC queues one of its own "interpreter: ..." comments (which this
+    /// interpreter does not send), a place holder, so that `qc_scale`'s count is LinuxCNC's.
+    pub(super) fn phantom(&mut self) {
+        if !self.queue.is_empty() {
+            let call =
+                CanonCall { line: 0, n: None, canon: Canon::Comment { text: String::new() }, machine: None };
+            self.queue.push(Pending { call, dir: (0.0, 0.0), sweep: 0.0, feed: 0.0, phantom: true });
+        }
     }
 
     /// Compensation is on (G41/G42), whatever the radius.
@@ -354,6 +367,9 @@ impl Interpreter<'_> {
         }
         let queue = std::mem::take(&mut self.comp.queue);
         for p in queue {
+            if p.phantom {
+                continue;
+            }
             let mut call = p.call;
             let start = self.comp.sent;
             let ms = self.to_machine(&start);
@@ -461,7 +477,7 @@ impl Interpreter<'_> {
 
     fn enqueue(&mut self, canon: Canon, dir: (f64, f64), sweep: f64, feed: f64) {
         let call = CanonCall { line: self.cur_line, n: self.cur_n, canon, machine: None };
-        self.comp.queue.push(Pending { call, dir, sweep, feed });
+        self.comp.queue.push(Pending { call, dir, sweep, feed, phantom: false });
     }
 
     /// A compensated G0/G1 from the programmed point `self.pos` to the programmed `end`.

@@ -17,6 +17,8 @@ impl Interpreter<'_> {
         // Axis words belong to a code other than motion (G10, G28/G30, G43.1, G52, G92).
         let mut axes_used = false;
         if let Some((code, _)) = gcode(5) {
+            // LinuxCNC queues an "interpreter: feed mode ..." comment here.
+            self.comp.phantom();
             self.set_feed_mode(code);
         }
         if let Some(f) = b.f {
@@ -138,13 +140,23 @@ impl Interpreter<'_> {
             }
             self.set_path_control(code, b);
         }
+        // A change of distance mode queues an "interpreter: ..." comment in LinuxCNC.
         if let Some((code, _)) = gcode(3) {
+            if self.absolute != (code == g::G90) {
+                self.comp.phantom();
+            }
             self.absolute = code == g::G90;
         }
         if let Some((code, _)) = gcode(4) {
+            if self.arc_absolute != (code == g::G90_1) {
+                self.comp.phantom();
+            }
             self.arc_absolute = code == g::G90_1;
         }
-        if let Some((code, _)) = gcode(10) {
+        if let Some((code, col)) = gcode(10) {
+            if self.comp.on() {
+                return Err(comp_err(col, "Cannot change retract mode with cutter radius compensation on"));
+            }
             self.cycles.retract_to_initial = code == g::G98;
         }
         let nonmodal = gcode(0);
@@ -208,6 +220,10 @@ impl Interpreter<'_> {
         }
         let previous = self.motion;
         if let Some((code, _)) = explicit_motion {
+            if code == g::G80 {
+                // LinuxCNC: "interpreter: motion mode set to none".
+                self.comp.phantom();
+            }
             let m = match code {
                 g::G0 => Some(Motion::Rapid),
                 g::G1 => Some(Motion::Feed),
