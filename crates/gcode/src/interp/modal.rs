@@ -167,6 +167,9 @@ impl Interpreter<'_> {
                         Some("Cannot change axis offsets with cutter radius comp")
                     }
                     g::G28 | g::G30 => Some("Cannot use g28 or g30 with cutter radius comp"),
+                    g::G28_1 | g::G30_1 => {
+                        Some("Cannot set reference point with cutter compensation in effect")
+                    }
                     _ => None,
                 };
                 if let Some(msg) = msg {
