@@ -26,8 +26,8 @@
 //!   start, through the offset end point). G18 (XZ, the lathe plane) works the same way with Z
 //!   and X as the plane's first and second coordinates; G93 rates are the programmed
 //!   move's, as LinuxCNC sends them. G20/G21 while moves are held scales them as LinuxCNC's
-//!   `qc_scale` does. Not supported, with an error: lathe tool orientations 1-8 under G18
-//!   (the tool's origin shift). `#<_ccomp>` is 400, 410 (left)
+//!   `qc_scale` does; under G18 a lathe tool's orientation (table Q, or G41.1/G42.1 L)
+//!   shifts the moves sent to the tool's origin as LinuxCNC's `latheorigin_x/z` do. `#<_ccomp>` is 400, 410 (left)
 //!   or 420 (right); the position parameters (#5420-, `#<_x>`, `#<_abs_x>`) give the compensated
 //!   tool's position, as LinuxCNC's do.
 //! * Feed modes G93 (inverse time: the rate is sent before each move), G94, G95 (per

@@ -231,12 +231,11 @@ impl Interpreter<'_> {
                 Some(_) if self.plane != Plane::Xz => return Err((col, ErrorKind::CompLWordNotG18(name))),
                 Some(l) => {
                     let r = crate::expr::round(l);
-                    // Only 0 and 9 (no lathe origin shift) are supported below.
-                    if r == 0.0 || r == 9.0 {
-                        r as u8
-                    } else {
-                        1
+                    if !(0.0..=9.0).contains(&r) {
+                        return Err(cc(col, "Invalid tool orientation"));
                     }
+                    // 0..=9.
+                    r as u8
                 }
             };
             (d / 2.0, orientation)
@@ -262,12 +261,6 @@ impl Interpreter<'_> {
             }
             (diameter_mm / self.units.mm_per_unit() / 2.0, orientation)
         };
-        if self.plane == Plane::Xz && !matches!(orientation, 0 | 9) {
-            return Err(cc(
-                col,
-                "Cutter radius compensation with a lathe tool orientation (1-8) is not supported",
-            ));
-        }
         let left = code == g::G41 || code == g::G41_1;
         // A negative radius swaps the side.
         let side = if (radius < 0.0) == left { Side::Right } else { Side::Left };
@@ -366,11 +359,32 @@ impl Interpreter<'_> {
             self.comp.last_front = self.comp.front_arc();
         }
         let queue = std::mem::take(&mut self.comp.queue);
+        let (dx, dz) = self.lathe_origin_shift();
         for p in queue {
             if p.phantom {
                 continue;
             }
             let mut call = p.call;
+            if dx != 0.0 || dz != 0.0 {
+                match &mut call.canon {
+                    Canon::StraightTraverse { end } | Canon::StraightFeed { end } => {
+                        if let Some(v) = end.get_mut(0) {
+                            *v += dx;
+                        }
+                        if let Some(v) = end.get_mut(2) {
+                            *v += dz;
+                        }
+                    }
+                    // G18: the first coordinate is Z, the second X.
+                    Canon::ArcFeed(a) => {
+                        a.first_end += dz;
+                        a.first_centre += dz;
+                        a.second_end += dx;
+                        a.second_centre += dx;
+                    }
+                    _ => {}
+                }
+            }
             let start = self.comp.sent;
             let ms = self.to_machine(&start);
             match &call.canon {
@@ -413,6 +427,27 @@ impl Interpreter<'_> {
             }
             self.out.push_back(call);
         }
+    }
+
+    /// LinuxCNC's `latheorigin_x` / `latheorigin_z`: under G18 a lathe tool (orientation
+    /// 1-8) is controlled at its nose radius's centre, so the moves sent are shifted by a
+    /// radius in X and Z towards the tool's origin (X, Z).
+    fn lathe_origin_shift(&self) -> (f64, f64) {
+        if self.plane != Plane::Xz {
+            return (0.0, 0.0);
+        }
+        let (o, r) = (self.comp.orientation, self.comp.radius);
+        let dx = match o {
+            1 | 2 | 6 => -r,
+            3 | 4 | 8 => r,
+            _ => 0.0,
+        };
+        let dz = match o {
+            2 | 3 | 7 => -r,
+            1 | 4 | 5 => r,
+            _ => 0.0,
+        };
+        (dx, dz)
     }
 
     /// LinuxCNC's `move_endpoint_and_flush`: every queued move now ends at (x, y); then
