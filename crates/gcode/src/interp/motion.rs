@@ -37,6 +37,17 @@ impl Interpreter<'_> {
         m
     }
 
+    /// The tool length offset in force on axis `k`, in program units (LinuxCNC's
+    /// `tool_offset`, which G53 and G28/G30 subtract from a machine position).
+    pub(super) fn tool_offset_program(&self, k: usize) -> f64 {
+        let tool = self.tool.offset_mm.get(k).copied().unwrap_or(0.0);
+        if k < 3 {
+            tool / self.units.mm_per_unit()
+        } else {
+            tool
+        }
+    }
+
     pub(super) fn origin(&self) -> Pose {
         self.origins.get(self.coord).copied().unwrap_or([0.0; 6])
     }
@@ -59,7 +70,9 @@ impl Interpreter<'_> {
                 continue;
             };
             *slot = if g53.is_some() {
-                v - origin.get(k).copied().unwrap_or(0.0) - self.g92.get(k).copied().unwrap_or(0.0)
+                v - origin.get(k).copied().unwrap_or(0.0)
+                    - self.g92.get(k).copied().unwrap_or(0.0)
+                    - self.tool_offset_program(k)
             } else if self.absolute {
                 v
             } else {
@@ -82,6 +95,28 @@ impl Interpreter<'_> {
             }
             if let Some(slot) = end.get_mut(1) {
                 *slot = radius * theta.sin();
+            }
+        }
+        if matches!(m, Motion::Cw | Motion::Ccw) {
+            if self.comp.arc_not_allowed {
+                return Err((
+                    mcol,
+                    ErrorKind::CutterComp(
+                        "The move just after exiting cutter compensation mode must be straight, not an arc",
+                    ),
+                ));
+            }
+        } else {
+            self.comp.arc_not_allowed = false;
+        }
+        if self.comp.active() {
+            if let Some(col) = g53 {
+                return Err((col, ErrorKind::CutterComp("Cannot use g53 with cutter radius comp")));
+            }
+            if matches!(m, Motion::Rapid | Motion::Feed) {
+                self.comp_straight(m == Motion::Rapid, b, end, mcol)?;
+                self.pos = end;
+                return Ok(());
             }
         }
         let ms = self.to_machine(&start);
@@ -150,6 +185,11 @@ impl Interpreter<'_> {
                         .map_err(|k| (mcol, k))?
                 };
                 let rotation = if cw { -turns } else { turns };
+                if self.comp.active() {
+                    self.comp_arc(b, end, centre, rotation, mcol)?;
+                    self.pos = end;
+                    return Ok(());
+                }
                 let arcf = ArcFeed {
                     first_end: en.0,
                     second_end: en.1,
@@ -191,7 +231,7 @@ impl Interpreter<'_> {
 
 /// The length of a straight move (program units): X Y Z, or the rotary axes' travel for a
 /// rotary-only move (as LinuxCNC's inverse-time rate takes it).
-fn straight_length(a: &Pose, b: &Pose) -> f64 {
+pub(super) fn straight_length(a: &Pose, b: &Pose) -> f64 {
     let d = |k: usize| b.get(k).copied().unwrap_or(0.0) - a.get(k).copied().unwrap_or(0.0);
     let linear = (d(0).powi(2) + d(1).powi(2) + d(2).powi(2)).sqrt();
     if linear > 0.0 {
@@ -203,7 +243,13 @@ fn straight_length(a: &Pose, b: &Pose) -> f64 {
 
 /// The length of an arc from `st` to `en` about `centre` (in its plane) with `rotation`
 /// (signed turns, LinuxCNC's), rising `axial` along the plane's normal: the helix's length.
-fn arc_length(st: (f64, f64), en: (f64, f64), centre: (f64, f64), rotation: i32, axial: f64) -> f64 {
+pub(super) fn arc_length(
+    st: (f64, f64),
+    en: (f64, f64),
+    centre: (f64, f64),
+    rotation: i32,
+    axial: f64,
+) -> f64 {
     use std::f64::consts::TAU;
     let radius = (st.0 - centre.0).hypot(st.1 - centre.1);
     let alpha = (st.1 - centre.1).atan2(st.0 - centre.0);

@@ -1,7 +1,8 @@
 //! Reference points and the local offset, with LinuxCNC's semantics: G28/G30 (a rapid to
 //! the programmed intermediate point, then the named axes, or all, to reference point 1
 //! #5161-#5166 or 2 #5181-#5186), G28.1/G30.1 (store the current absolute position there)
-//! and G52 (the local offset, which LinuxCNC keeps in the G92 offsets).
+//! and G52 (the local offset, which LinuxCNC keeps in the G92 offsets). As LinuxCNC's
+//! `find_relative`, the reference's program position is net of the tool length offset.
 //! The stored points are in the machine's units, millimetres and degrees.
 
 use super::modal::G92Params;
@@ -31,7 +32,10 @@ impl Interpreter<'_> {
                 continue;
             }
             let machine = self.params.get(base + k) / self.user_units_per_program_unit(k);
-            *slot = machine - origin.get(k).copied().unwrap_or(0.0) - self.g92.get(k).copied().unwrap_or(0.0);
+            *slot = machine
+                - origin.get(k).copied().unwrap_or(0.0)
+                - self.g92.get(k).copied().unwrap_or(0.0)
+                - self.tool_offset_program(k);
         }
         self.traverse_to(end);
     }
@@ -43,7 +47,8 @@ impl Interpreter<'_> {
         for k in 0..6 {
             let abs = self.pos.get(k).copied().unwrap_or(0.0)
                 + origin.get(k).copied().unwrap_or(0.0)
-                + self.g92.get(k).copied().unwrap_or(0.0);
+                + self.g92.get(k).copied().unwrap_or(0.0)
+                + self.tool_offset_program(k);
             self.params.set(base + k, abs * self.user_units_per_program_unit(k));
         }
     }
