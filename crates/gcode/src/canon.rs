@@ -138,7 +138,8 @@ pub enum Canon {
         /// Offset per axis.
         offset: Pose,
     },
-    /// `SET_XY_ROTATION(degrees)` (always 0 here: rotation is not implemented).
+    /// `SET_XY_ROTATION(degrees)`: the active coordinate system's rotation about Z
+    /// (G10 L2 R); positions in the calls stay unrotated, [`MachineMove`]s are rotated.
     SetXyRotation {
         /// Degrees.
         degrees: f64,

@@ -9,7 +9,7 @@
 //! G73/G81/G82/G83/G85/G89, G80), M0/M1/M2/M30.
 //!
 //! Submodules: `modal` (a block's modal changes), `motion` (moves and arcs), `cycles`
-//! (canned cycles and path control), `feed` (G93-G97), `reference` (G28/G30, G52), `tooling` (T, M6, G43/G49), `oword`
+//! (canned cycles and path control), `feed` (G93-G97), `reference` (G28/G30, G52), `rotation` (G10 L2 R), `tooling` (T, M6, G43/G49), `oword`
 //! (O-word control flow), `system_params` (LinuxCNC's read-only parameters and the
 //! `(DEBUG,...)` text). One line at a time is parsed into a reused [`Line`]; only
 //! O-word lines keep their parse (loops and calls come back to them).
@@ -20,6 +20,7 @@ mod modal;
 mod motion;
 mod oword;
 mod reference;
+mod rotation;
 mod system_params;
 mod tooling;
 
@@ -144,6 +145,8 @@ pub struct Interpreter<'a> {
     coord: usize,
     origins: [Pose; 9],
     g92: Pose,
+    /// The active system's XY rotation, degrees (`rotation.rs`).
+    rot: f64,
     /// Canned cycles' sticky words and levels, and the path control in force.
     cycles: cycles::CycleState,
     tool: tooling::ToolState,
@@ -199,6 +202,7 @@ impl<'a> Interpreter<'a> {
             coord: 0,
             origins: [[0.0; 6]; 9],
             g92: [0.0; 6],
+            rot: 0.0,
             cycles: cycles::CycleState::default(),
             tool: tooling::ToolState::default(),
             path: cycles::PathControl::default(),

@@ -10,8 +10,18 @@
 //! * Dialect: LinuxCNC's `rs274` is the reference (see `tests/rs274_oracle.rs`); the
 //!   canonical stream uses its call names, argument order and coordinate conventions
 //!   (see [`canon`]). Differences: interpreter-generated `COMMENT("interpreter: ...")`
-//!   lines and `ON_RESET()` are not emitted; unsupported codes (cutter compensation, XY
-//!   rotation, U/V/W, canned cycles outside G17, polar words outside G0-G3) are errors.
+//!   lines and `ON_RESET()` are not emitted; unsupported codes (cutter compensation,
+//!   U/V/W, canned cycles outside G17, polar words outside G0-G3) are errors.
+//! * Coordinate-system rotation: `G10 L2 P.. R..` sets the rotation about Z of G54..G59.3
+//!   (degrees, #5230 + 20 k: #5230 for G54, #5250 for G55, ...; R with L20 is an error, as
+//!   in LinuxCNC). The active system's rotation turns every programmed XY (lines, arcs
+//!   and their centres, cycles, polar moves) about its origin, the G92/G52 offset applied
+//!   in the rotated frame; the calls keep program coordinates after
+//!   `SET_XY_ROTATION(r)` (emitted with each `SET_G5X_OFFSET` of the active system), while
+//!   the [`MachineMove`]s, `#<_abs_x>`/`#<_abs_y>`, G53, G28/G30 and G28.1/G30.1 go through
+//!   it. G10 L20 touches off in the target system's rotated frame; selecting a system,
+//!   changing the active one's origin or rotation, a tool offset in X/Y and M2/M30 (back
+//!   to G54 and its rotation) move the current point as LinuxCNC does.
 //! * Feed modes G93 (inverse time: the rate is sent before each move), G94, G95 (per
 //!   revolution: planned with the S word, or G96's D limit), spindle modes G96/G97; every
 //!   feed move's [`MachineMove`] carries its rate in mm/min.

@@ -1,7 +1,7 @@
 //! Compares Motus's canonical stream with LinuxCNC's, call by call, on tests/corpus/*.ngc:
 //! * `rs274 -g -n 2` (text, 4 decimals): names and every argument within 5e-5;
 //! * LinuxCNC's Python `gcode` module (tests/oracle/gcode_oracle.py, full doubles):
-//!   every end point, arc centre and offset within 1e-6 mm.
+//!   every end point, arc centre, offset and XY rotation within 1e-6 mm (degree).
 //!
 //! Ignored on both sides: `COMMENT(...)` lines (LinuxCNC adds "interpreter: ..." ones)
 //! and `ON_RESET()` (printed by the rs274 driver, not by the interpreter).
@@ -23,12 +23,13 @@ const TOOL_TABLE: &str = "T1 P1 D0.125 Z0.5 ;drill\nT2 P2 D0.25 Z1.25 X0.01 ;\nT
 /// Programs the Python `gcode` module cannot run: outside a running LinuxCNC it has no tool
 /// data, and a T word crashes it (segmentation fault, LinuxCNC 2.9). They are compared with
 /// `rs274` only.
-const WITHOUT_GCODE_MODULE: [&str; 5] = [
+const WITHOUT_GCODE_MODULE: [&str; 6] = [
     "27_tools_and_length_offsets.ngc",
     "30_fusion_2d_contour_mm.ngc",
     "31_mastercam_pocket_helix.ngc",
     "49_g53_tool_change_with_length_offsets.ngc",
     "61_g92_g52_with_tool_offset_inch.ngc",
+    "83_rotated_inch_with_tool_x_offset.ngc",
 ];
 
 /// Motus's interpretation with the oracles' tool table.
@@ -182,6 +183,7 @@ fn ours_full(src: &str) -> Vec<(String, Vec<f64>)> {
             }
             Canon::SetG92Offset { offset } => v.push(("g92".into(), mm(&offset))),
             Canon::Dwell { seconds } => v.push(("dwell".into(), vec![seconds])),
+            Canon::SetXyRotation { degrees } => v.push(("rot".into(), vec![degrees])),
             _ => {}
         }
     }
@@ -204,7 +206,7 @@ fn canon_matches_gcode_module_within_1e6_mm() {
             .filter(|l| {
                 l.split_whitespace()
                     .next()
-                    .is_some_and(|n| ["traverse", "feed", "arc", "g5x", "g92", "dwell"].contains(&n))
+                    .is_some_and(|n| ["traverse", "feed", "arc", "g5x", "g92", "dwell", "rot"].contains(&n))
             })
             .map(|l| {
                 let mut it = l.split_whitespace();

@@ -165,3 +165,23 @@ fn arc_radius_errors_read_as_linuxcnc_words_them() {
         assert_eq!(e.kind.to_string(), rs274);
     }
 }
+
+#[test]
+fn machine_moves_follow_the_coordinate_system_rotation() {
+    // G55 at (100, 50) turned 90 degrees, G92 shifts 1 mm along the rotated X: program
+    // (10, 0) is at machine (100, 50) + R90 (11, 0) = (100, 61); the arc's centre
+    // (10, 5) + (1, 0) turns to (-5, 11).
+    let src =
+        "G21 G90\nG10 L2 P2 X100 Y50 R90\nG55\nG0 X0 Y0\nG92 X-1\nG1 X10 Y0 F100\nG3 X10 Y10 I0 J5\nM2\n";
+    let calls = interpret(src).unwrap();
+    let moves: Vec<MachineMove> = calls.iter().filter_map(|c| c.machine).collect();
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-9;
+    let MachineMove::Feed { end, .. } = moves[1] else { panic!("{:?}", moves[1]) };
+    assert!(close(end[0], 100.0) && close(end[1], 61.0), "{end:?}");
+    let MachineMove::Arc { end, centre, .. } = moves[2] else { panic!("{:?}", moves[2]) };
+    assert!(close(end[0], 90.0) && close(end[1], 61.0), "{end:?}");
+    assert!(close(centre[0], 95.0) && close(centre[1], 61.0), "{centre:?}");
+    // The canonical calls stay in the program's (unrotated) coordinates.
+    assert!(calls.iter().any(|c| c.canon == Canon::SetXyRotation { degrees: 90.0 }));
+    assert!(calls.iter().any(|c| matches!(c.canon, Canon::StraightFeed { end } if end[0] == 10.0)));
+}

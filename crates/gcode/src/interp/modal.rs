@@ -4,6 +4,7 @@
 
 use super::cycles::Cycle;
 use super::motion::Motion;
+use super::rotation::{self, rotate, rotation_param};
 use super::{origin_param, Interpreter};
 use crate::block::{g, Block};
 use crate::canon::{Canon, MSync, Plane, Pose, Units};
@@ -112,7 +113,7 @@ impl Interpreter<'_> {
             if k != self.coord {
                 self.select_coord(k);
                 self.emit(Canon::SetG92Offset { offset: self.g92 });
-                self.emit(Canon::SetXyRotation { degrees: 0.0 });
+                self.emit(Canon::SetXyRotation { degrees: self.rot });
             }
         }
         if let Some((code, _)) = gcode(13) {
@@ -284,11 +285,13 @@ impl Interpreter<'_> {
         Ok(())
     }
 
+    /// G10 L2 (origin and rotation of a system) and G10 L20 (origin such that the
+    /// current point has the given coordinates), with LinuxCNC's `convert_setup`.
     fn g10(&mut self, b: &Block, col: u32) -> KResult<()> {
         let l = b.l.ok_or((col, ErrorKind::BadG10("L word missing")))?;
         let p = b.p.ok_or((col, ErrorKind::BadG10("P word missing")))?;
-        if b.r.is_some() {
-            return Err((col, ErrorKind::BadG10("R (rotation) is not supported")));
+        if b.ijk.iter().take(2).any(Option::is_some) {
+            return Err((col, ErrorKind::BadG10("I J words not allowed with G10 L2")));
         }
         let pi = p.round();
         if (p - pi).abs() > 0.0001 || !(0.0..=9.0).contains(&pi) {
@@ -296,33 +299,60 @@ impl Interpreter<'_> {
         }
         // 0..=9 checked above; P0 = the active system.
         let k = if pi == 0.0 { self.coord } else { pi as usize - 1 };
-        let mut new = self.origins.get(k).copied().unwrap_or([0.0; 6]);
-        let cur = self.origin();
         let l20 = match l.round() as i64 {
             2 => false,
             20 => true,
             _ => return Err((col, ErrorKind::BadG10("only L2 and L20 are supported"))),
         };
-        for a in 0..6 {
-            if let (Some(v), Some(slot)) = (b.axes.get(a).copied().flatten(), new.get_mut(a)) {
-                *slot = if l20 {
-                    self.pos.get(a).copied().unwrap_or(0.0) + cur.get(a).copied().unwrap_or(0.0) - v
-                } else {
-                    v
-                };
+        let mut new = self.origins.get(k).copied().unwrap_or([0.0; 6]);
+        let cur = self.current_in_system(k);
+        let r = match b.r {
+            Some(_) if l20 => return Err((col, ErrorKind::BadG10("R not allowed in G10 L20"))),
+            Some(r) => {
+                self.params.set(rotation_param(k), r);
+                r
+            }
+            None => self.rotation_of(k),
+        };
+        let word = |a: usize| b.axes.get(a).copied().flatten();
+        let at = |p: &Pose, a: usize| p.get(a).copied().unwrap_or(0.0);
+        if l20 {
+            // X and Y in the target system's rotated frame (LinuxCNC writes both).
+            let (ox, oy) = rotate(at(&cur, 0), at(&cur, 1), r);
+            let (tx, ty) = rotate(word(0).unwrap_or(at(&cur, 0)), word(1).unwrap_or(at(&cur, 1)), r);
+            let xy = (ox + at(&new, 0) - tx, oy + at(&new, 1) - ty);
+            rotation::set_xy(&mut new, xy);
+        }
+        let first = if l20 { 2 } else { 0 };
+        for a in first..6 {
+            if let (Some(v), Some(slot)) = (word(a), new.get_mut(a)) {
+                *slot = if l20 { at(&cur, a) + *slot - v } else { v };
             }
         }
-        self.set_origin(k, new);
+        if k == self.coord {
+            self.rebase_current(&new, r);
+        }
+        if let Some(slot) = self.origins.get_mut(k) {
+            *slot = new;
+        }
+        for (a, v) in new.iter().enumerate() {
+            self.params.set(origin_param(k) + a, *v);
+        }
         if k == self.coord {
             self.emit(Canon::SetG5xOffset { index: u8::try_from(k + 1).unwrap_or(1), offset: new });
-            self.emit(Canon::SetXyRotation { degrees: 0.0 });
+            self.emit(Canon::SetXyRotation { degrees: r });
         }
         Ok(())
     }
 
     fn program_end(&mut self, pallet: bool) {
-        self.select_coord(0);
-        self.emit(Canon::SetXyRotation { degrees: 0.0 });
+        // LinuxCNC: back to G54 (the current point moved without the G92 offset).
+        let g54 = self.origins.first().copied().unwrap_or([0.0; 6]);
+        self.rebase_current(&g54, self.rotation_of(0));
+        self.coord = 0;
+        self.params.set(5220, 1.0);
+        self.emit(Canon::SetG5xOffset { index: 1, offset: g54 });
+        self.emit(Canon::SetXyRotation { degrees: self.rot });
         if self.plane != Plane::Xy {
             self.plane = Plane::Xy;
             self.emit(Canon::SelectPlane { plane: Plane::Xy });
@@ -386,32 +416,13 @@ impl Interpreter<'_> {
         }
     }
 
-    fn set_origin(&mut self, k: usize, new: Pose) {
-        if k == self.coord {
-            let old = self.origin();
-            for a in 0..6 {
-                if let (Some(p), Some(o), Some(n)) = (self.pos.get_mut(a), old.get(a), new.get(a)) {
-                    *p += o - n;
-                }
-            }
-        }
-        if let Some(slot) = self.origins.get_mut(k) {
-            *slot = new;
-        }
-        for (a, v) in new.iter().enumerate() {
-            self.params.set(origin_param(k) + a, *v);
-        }
-    }
-
+    /// G54..G59.3: the current point moves into system `k` (LinuxCNC's
+    /// `find_current_in_system`), whose rotation becomes active.
     fn select_coord(&mut self, k: usize) {
-        let old = self.origin();
+        self.pos = self.current_in_system(k);
         self.coord = k;
+        self.rot = self.rotation_of(k);
         let new = self.origin();
-        for a in 0..6 {
-            if let (Some(p), Some(o), Some(n)) = (self.pos.get_mut(a), old.get(a), new.get(a)) {
-                *p += o - n;
-            }
-        }
         self.params.set(5220, (k + 1) as f64);
         self.emit(Canon::SetG5xOffset { index: u8::try_from(k + 1).unwrap_or(1), offset: new });
     }

@@ -104,11 +104,15 @@ impl Interpreter<'_> {
             _ => [0.0; 6],
         };
         let old = self.tool.offset_mm;
-        for k in 0..6 {
+        let mut delta: Pose = std::array::from_fn(|k| {
             let f = if k < 3 { mm } else { 1.0 };
-            if let (Some(p), Some(o), Some(n)) = (self.pos.get_mut(k), old.get(k), new_mm.get(k)) {
-                *p += (o - n) / f;
-            }
+            (old.get(k).copied().unwrap_or(0.0) - new_mm.get(k).copied().unwrap_or(0.0)) / f
+        });
+        // The X/Y change is in the machine's frame: into the rotated program frame.
+        let (dx, dy) = (delta.first().copied().unwrap_or(0.0), delta.get(1).copied().unwrap_or(0.0));
+        super::rotation::set_xy(&mut delta, super::rotation::rotate(dx, dy, -self.rot));
+        for (p, d) in self.pos.iter_mut().zip(delta) {
+            *p += d;
         }
         self.tool.offset_mm = new_mm;
         self.tool.active = code != g::G49;
