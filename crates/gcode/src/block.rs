@@ -113,6 +113,8 @@ pub(crate) struct Block {
     pub(crate) t: Option<f64>,
     pub(crate) h: Option<f64>,
     pub(crate) d: Option<f64>,
+    /// The E word (M66-M68's analog channel in the LinuxCNC dialect).
+    pub(crate) e: Option<f64>,
     /// Polar radius `@` and angle `^` (degrees).
     pub(crate) polar: [Option<f64>; 2],
     /// Column of the first axis word (for error positions).
@@ -225,6 +227,7 @@ pub(crate) fn read_block(b: &mut Block, line: &Line, params: &Params, stack: &mu
             b'T' => set(&mut b.t, b'T')?,
             b'H' => set(&mut b.h, b'H')?,
             b'D' => set(&mut b.d, b'D')?,
+            b'E' => set(&mut b.e, b'E')?,
             b'@' | b'^' => {
                 let k = usize::from(w.letter == b'^');
                 if let Some(slot) = b.polar.get_mut(k) {

@@ -195,6 +195,9 @@ pub enum ErrorKind {
     /// G10 with a bad or missing L/P.
     #[error("Invalid G10 use: {0}")]
     BadG10(&'static str),
+    /// M60-M68 in the LinuxCNC dialect with missing or bad words (LinuxCNC's message).
+    #[error("{0}")]
+    BadIo(&'static str),
     /// G92 without an axis word.
     #[error("All axes missing with g92")]
     G92NoAxes,

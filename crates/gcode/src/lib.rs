@@ -42,11 +42,23 @@
 //!   ([`InterpreterConfig::tools`], LinuxCNC's `.tbl` format read by [`parse_tool_table`]);
 //!   the tool length offset moves the controlled point as in LinuxCNC. Unlike `rs274`, an
 //!   offset in force is converted when G20/G21 changes the units.
+//! * M-code dialect, per machine ([`InterpreterConfig::m_codes`], [`MCodeDialect`]): the
+//!   seed's (default: M60-M68 are M-functions, the seed's drilling machine uses M60-M64)
+//!   or LinuxCNC's, where M60 is `PALLET_SHUTTLE` + `PROGRAM_STOP`, M61 Q declares the
+//!   spindle's tool (`CHANGE_TOOL_NUMBER`, #5400.. and G43 follow, as in a running
+//!   LinuxCNC; the standalone `rs274` leaves its tool data unchanged), M62/M63 P and
+//!   M64/M65 P switch digital outputs with the next move or at once
+//!   ([`Canon::DigitalOutput`]), M67/M68 E Q set analog outputs ([`Canon::AnalogOutput`]),
+//!   M66 P|E L Q waits on an input ([`Canon::WaitInput`], which `rs274` does not print;
+//!   #5399 keeps its value: the input is the machine's). LinuxCNC's checks and messages;
+//!   stricter than it, M67/M68 without Q (LinuxCNC sends -1) and M66 L outside 0..=4
+//!   are errors. The E word exists only in the LinuxCNC dialect.
 //! * `(DEBUG,text)` is a message and `(PRINT,text)` a comment, each with the values of the
 //!   parameters named in `text` (six decimals, `######` for one not defined).
 //! * Seed additions: every M number 0..=1023 other than M0-M9, M30 is an
 //!   M-function ([`Canon::MFunction`], synchronous unless listed in
-//!   [`InterpreterConfig::async_m_functions`]), executed before the block's motion;
+//!   [`InterpreterConfig::async_m_functions`]), executed before the block's motion
+//!   (in the LinuxCNC dialect below, all but M60-M68);
 //!   `EX<B|W|L|F><0..99>=value` writes an external parameter ([`Canon::ExternalParameter`]),
 //!   executed right after the block's comment, before its M-functions.
 //! * Speed: a line is parsed into reused buffers (plain words straight from the text,
@@ -69,8 +81,9 @@ mod value;
 
 pub use canon::{
     ArcFeed, Canon, CanonCall, ExArray, ExValue, MSync, MachineMove, MotionControl, Plane, Pose, Units,
+    WaitMode,
 };
 pub use error::{ErrorKind, GcodeError};
 pub use format::{format_canon, format_line, write_canon, write_line, Precision};
-pub use interp::{interpret, interpret_with, CancelFlag, Interpreter, InterpreterConfig};
+pub use interp::{interpret, interpret_with, CancelFlag, Interpreter, InterpreterConfig, MCodeDialect};
 pub use tools::{parse_tool_table, Tool, ToolTableError};

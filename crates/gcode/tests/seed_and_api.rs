@@ -4,8 +4,8 @@
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use motus_gcode::{
-    format_canon, interpret, interpret_with, Canon, ErrorKind, Interpreter, InterpreterConfig, MachineMove,
-    Precision,
+    format_canon, interpret, interpret_with, Canon, ErrorKind, Interpreter, InterpreterConfig, MCodeDialect,
+    MachineMove, Precision,
 };
 
 fn text(src: &str, cfg: InterpreterConfig) -> Vec<String> {
@@ -184,4 +184,46 @@ fn machine_moves_follow_the_coordinate_system_rotation() {
     // The canonical calls stay in the program's (unrotated) coordinates.
     assert!(calls.iter().any(|c| c.canon == Canon::SetXyRotation { degrees: 90.0 }));
     assert!(calls.iter().any(|c| matches!(c.canon, Canon::StraightFeed { end } if end[0] == 10.0)));
+}
+
+#[test]
+fn m60_to_m68_follow_the_machine_dialect() {
+    let src = "G0 X1\nM62 P1\nM66 P2 L3 Q1.5\nM67 E0 Q2.5\nM60\nM100 P1\nM2\n";
+    // The seed's M-functions take P and Q words, not L or E.
+    let seed = text(&src.replace(" L3", "").replace("E0 ", ""), InterpreterConfig::default());
+    assert_eq!(
+        seed[..6],
+        [
+            "STRAIGHT_TRAVERSE(1, 0, 0, 0, 0, 0)",
+            "M_FUNCTION(62, SYNC)",
+            "M_FUNCTION(66, SYNC)",
+            "M_FUNCTION(67, SYNC)",
+            "M_FUNCTION(60, SYNC)",
+            "M_FUNCTION(100, SYNC)"
+        ]
+    );
+    let cfg = InterpreterConfig { m_codes: MCodeDialect::LinuxCnc, ..InterpreterConfig::default() };
+    let linuxcnc = text(src, cfg.clone());
+    assert_eq!(
+        linuxcnc[..7],
+        [
+            "STRAIGHT_TRAVERSE(1, 0, 0, 0, 0, 0)",
+            "SET_MOTION_OUTPUT_BIT(1)",
+            "WAIT(2, DIGITAL_INPUT, 3, 1.5)",
+            "SET_MOTION_OUTPUT_VALUE(0,2.5)",
+            "PALLET_SHUTTLE()",
+            "PROGRAM_STOP()",
+            "M_FUNCTION(100, SYNC)"
+        ]
+    );
+    // An E word is only read in the LinuxCNC dialect.
+    let e = interpret_with("M66 E1\nM2\n", InterpreterConfig::default()).unwrap_err();
+    assert_eq!(e.kind, ErrorKind::UnsupportedLetter('E'));
+    // Refused here although the standalone rs274 accepts them: M67/M68 without a value
+    // (LinuxCNC would send -1) and an M66 wait type outside 0..=4.
+    for bad in ["M67 E1\nM2\n", "M68 E0\nM2\n", "M66 P1 L7 Q1\nM2\n"] {
+        let e = interpret_with(bad, cfg.clone()).unwrap_err();
+        assert!(matches!(e.kind, ErrorKind::BadIo(_)), "{bad}: {e}");
+        assert_eq!(e.line, 1);
+    }
 }

@@ -3,6 +3,7 @@
 //! distance modes, G10/G92, motion, stops and the program-end reset.
 
 use super::cycles::Cycle;
+use super::io::{IoCodes, MCodeDialect};
 use super::motion::Motion;
 use super::rotation::{self, rotate, rotation_param};
 use super::{origin_param, Interpreter};
@@ -12,9 +13,11 @@ use crate::error::{ErrorKind, KResult};
 
 impl Interpreter<'_> {
     /// Executes the block's words (the line's assignments, comment and EX writes are done).
-    pub(super) fn execute_block(&mut self, b: &Block) -> KResult<()> {
+    pub(super) fn execute_block(&mut self, b: &mut Block) -> KResult<()> {
+        let io = self.take_io_codes(b)?;
+        let b = &*b;
         let gcode = |grp: usize| b.g.get(grp).copied().flatten();
-        self.check_words(b)?;
+        self.check_words(b, io)?;
         // Axis words belong to a code other than motion (G10, G28/G30, G43.1, G52, G92).
         let mut axes_used = false;
         if let Some((code, _)) = gcode(5) {
@@ -36,7 +39,13 @@ impl Interpreter<'_> {
             self.rpm = s;
             self.emit(Canon::SetSpindleSpeed { rpm: s });
         }
-        self.tool_words(b)?;
+        // LinuxCNC's order: T, M62-M68, M6 or M61.
+        self.select_tool(b)?;
+        self.io_words(b, io)?;
+        self.change_tool(b)?;
+        if io.set_tool {
+            self.set_current_tool(b)?;
+        }
         match b.m_spindle {
             Some(3) => {
                 self.spindle = 1;
@@ -210,6 +219,11 @@ impl Interpreter<'_> {
                 return Err((col, ErrorKind::G53WithoutStraight));
             }
         }
+        if io.pallet {
+            // M60: the pallets are exchanged, then the program stops.
+            self.emit(Canon::PalletShuttle);
+            self.emit(Canon::ProgramStop);
+        }
         match b.m_stop {
             Some(0) => self.emit(Canon::ProgramStop),
             Some(1) => self.emit(Canon::OptionalProgramStop),
@@ -221,7 +235,7 @@ impl Interpreter<'_> {
 
     /// LinuxCNC's check that every P, Q, R, L and H word has a code in the block that uses
     /// it (the motion: the block's own, or the modal one when the block has axis words).
-    fn check_words(&self, b: &Block) -> KResult<()> {
+    fn check_words(&self, b: &Block, io: IoCodes) -> KResult<()> {
         let code = |grp: usize| b.g.get(grp).copied().flatten().map(|(c, _)| c);
         let motion = code(1).or_else(|| {
             if !b.has_axes() {
@@ -252,18 +266,25 @@ impl Interpreter<'_> {
                 || matches!(motion, Some(g::G82 | g::G89))
                 || matches!(modal0, Some(g::G4 | g::G10))
                 || path == Some(g::G64)
-                || user_m;
+                || user_m
+                || io.uses_p();
             missing(ok, 'P', "G2, G3, G4, G10, G64, G82, G89 or M-function")?;
         }
         if b.q.is_some() {
-            let ok = matches!(motion, Some(g::G73 | g::G83)) || path == Some(g::G64) || user_m;
+            let ok = matches!(motion, Some(g::G73 | g::G83)) || path == Some(g::G64) || user_m || io.uses_q();
             missing(ok, 'Q', "G64, G73, G83 or M-function")?;
         }
         if b.r.is_some() {
             missing(arc || cycle || modal0 == Some(g::G10), 'R', "G2, G3, G10 or canned cycle")?;
         }
         if b.l.is_some() {
-            missing(cycle || modal0 == Some(g::G10), 'L', "G10 or canned cycle")?;
+            missing(cycle || modal0 == Some(g::G10) || io.uses_l(), 'L', "G10, canned cycle or M66")?;
+        }
+        if b.e.is_some() {
+            if self.config.m_codes == MCodeDialect::Seed {
+                return Err((b.first_col, ErrorKind::UnsupportedLetter('E')));
+            }
+            missing(io.uses_e(), 'E', "M66, M67 or M68")?;
         }
         if b.h.is_some() {
             missing(tool == Some(g::G43), 'H', "G43")?;

@@ -25,7 +25,7 @@ fn tool_number(v: f64, col: u32) -> KResult<u32> {
 
 impl Interpreter<'_> {
     /// The place (1-based) of tool `number` in the table; 0 for tool 0 (no tool).
-    fn tool_index(&self, number: u32, col: u32) -> KResult<usize> {
+    pub(super) fn tool_index(&self, number: u32, col: u32) -> KResult<usize> {
         if number == 0 {
             return Ok(0);
         }
@@ -37,14 +37,19 @@ impl Interpreter<'_> {
             .ok_or((col, ErrorKind::ToolNotFound(number)))
     }
 
-    /// The block's T word and M6, in LinuxCNC's order (select, then change).
-    pub(super) fn tool_words(&mut self, b: &Block) -> KResult<()> {
+    /// The block's T word (`SELECT_TOOL`).
+    pub(super) fn select_tool(&mut self, b: &Block) -> KResult<()> {
         if let Some(t) = b.t {
             let number = tool_number(t, b.first_col)?;
             let index = self.tool_index(number, b.first_col)?;
             self.tool.selected = (number, index);
             self.emit(Canon::SelectTool { tool: number });
         }
+        Ok(())
+    }
+
+    /// The block's M6: the selected tool into the spindle.
+    pub(super) fn change_tool(&mut self, b: &Block) -> KResult<()> {
         if b.m_tool.is_some() {
             // LinuxCNC 2.9: the spindle stops for the change. Changing to the empty place
             // (T0) leaves the spindle's tool entry, and its number, as they were.
@@ -63,7 +68,7 @@ impl Interpreter<'_> {
 
     /// #5400-#5413: the spindle's tool number, offsets X..W, diameter, angles, orientation
     /// (the machine's units, as the table holds them).
-    fn publish_tool_params(&mut self) {
+    pub(super) fn publish_tool_params(&mut self) {
         let (number, index) = self.tool.current;
         let tool = index.checked_sub(1).and_then(|i| self.config.tools.get(i));
         let mut values: Vec<f64> = Vec::with_capacity(14);
