@@ -218,7 +218,7 @@ fn m60_to_m68_follow_the_machine_dialect() {
     );
     // An E word is only read in the LinuxCNC dialect.
     let e = interpret_with("M66 E1\nM2\n", InterpreterConfig::default()).unwrap_err();
-    assert_eq!(e.kind, ErrorKind::UnsupportedLetter('E'));
+    assert_eq!((e.column, e.kind), (5, ErrorKind::UnsupportedLetter('E')));
     // Refused here although the standalone rs274 accepts them: M67/M68 without a value
     // (LinuxCNC would send -1) and an M66 wait type outside 0..=4.
     for bad in ["M67 E1\nM2\n", "M68 E0\nM2\n", "M66 P1 L7 Q1\nM2\n"] {

@@ -282,7 +282,7 @@ impl Interpreter<'_> {
         }
         if b.e.is_some() {
             if self.config.m_codes == MCodeDialect::Seed {
-                return Err((b.first_col, ErrorKind::UnsupportedLetter('E')));
+                return Err((b.e_col, ErrorKind::UnsupportedLetter('E')));
             }
             missing(io.uses_e(), 'E', "M66, M67 or M68")?;
         }

@@ -29,7 +29,7 @@ impl Interpreter<'_> {
         let mut shifted: Pose = std::array::from_fn(|k| {
             p.get(k).copied().unwrap_or(0.0) + self.g92.get(k).copied().unwrap_or(0.0)
         });
-        rotation::set_xy(&mut shifted, self.unrotated_xy(p));
+        rotation::turn(&mut shifted, self.rot);
         let mut m = [0.0; 6];
         for (k, slot) in m.iter_mut().enumerate() {
             let v = shifted.get(k).copied().unwrap_or(0.0) + o.get(k).copied().unwrap_or(0.0);

@@ -15,6 +15,11 @@ use crate::canon::Pose;
 
 /// LinuxCNC's `rotate`: `(x, y)` turned by `degrees` counter-clockwise.
 pub(super) fn rotate(x: f64, y: f64, degrees: f64) -> (f64, f64) {
+    // No rotation, the common case: nothing to compute (LinuxCNC's cos 0 = 1, sin 0 = 0
+    // give the same values).
+    if degrees == 0.0 {
+        return (x, y);
+    }
     let t = degrees.to_radians();
     let (s, c) = t.sin_cos();
     (x * c - y * s, x * s + y * c)
