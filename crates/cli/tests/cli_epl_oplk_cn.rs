@@ -24,7 +24,8 @@
 //! is asserted is that the MN boots and configures the CN, and that after every reset the CN
 //! is booted again and OPERATIONAL at the end of the hold. The CN's PReq -> PRes turnaround
 //! (p50/p99/max) is printed. `MOTUS_OPLK_CN_SPIN=1` runs the CN with `--spin`; `MOTUS_OPLK_VERBOSE=1` prints
-//! the logs; `MOTUS_OPLK_MN_FIFO=<prio>` runs the MN under `chrt -f <prio>`. On a 2-core
+//! the logs; `MOTUS_OPLK_KEEP=<dir>` keeps them (and with `MOTUS_OPLK_CAPTURE=1` the CN's
+//! traffic, `cn.pcapng`, taken by `dumpcap`); `MOTUS_OPLK_MN_FIFO=<prio>` runs the MN under `chrt -f <prio>`. On a 2-core
 //! host `--spin` starves the MN (the spinning SCHED_FIFO thread takes a core): not the
 //! default.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
@@ -42,6 +43,7 @@ const SCENARIO: &str = r#"
 set -u
 mount -t tmpfs motus-netns /run/netns || exit 90
 sh "$OPLK/segment.sh" up "$MNP" "$CNP" > "$W/segment.log" 2>&1 || { cat "$W/segment.log" >&2; exit 91; }
+[ -n "${MOTUS_OPLK_CAPTURE:-}" ] && { ip netns exec "oplk-$CNP" dumpcap -q -i "${CNP}0" -w "$W/cn.pcapng" 2> "$W/dumpcap.log" & sleep 1; }
 ip netns exec "oplk-$CNP" "$MOTUS" epl cn --if "${CNP}0" --node 1 $CNARGS > "$W/cn.log" 2>&1 &
 CN=$!
 sh "$OPLK/run-node.sh" "oplk-$MNP" "$W/mn" $MNPRE "$OPLK/bin/demo_mn_console" -c "$CDC" -d "${MNP}0" < /dev/null > "$W/mn.log" 2>&1 &
@@ -153,7 +155,7 @@ fn run_with(cdc: &str, tag: &str, policy: Hold, extra_cn_args: &str) {
     if let Some(keep) = std::env::var_os("MOTUS_OPLK_KEEP") {
         let keep = std::path::PathBuf::from(keep).join(format!("{tag}-{unique}"));
         let _ = std::fs::create_dir_all(&keep);
-        for name in LOGS {
+        for name in LOGS.iter().chain(&["cn.pcapng"]) {
             let _ = std::fs::copy(rig.dir.path().join(name), keep.join(name));
         }
         eprintln!("{cdc}: logs kept in {}", keep.display());

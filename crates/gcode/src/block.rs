@@ -22,6 +22,11 @@ pub(crate) mod g {
     pub(crate) const G28_1: u16 = 281;
     pub(crate) const G30: u16 = 300;
     pub(crate) const G30_1: u16 = 301;
+    pub(crate) const G40: u16 = 400;
+    pub(crate) const G41: u16 = 410;
+    pub(crate) const G41_1: u16 = 411;
+    pub(crate) const G42: u16 = 420;
+    pub(crate) const G42_1: u16 = 421;
     pub(crate) const G52: u16 = 520;
     pub(crate) const G43: u16 = 430;
     pub(crate) const G43_1: u16 = 431;
@@ -66,6 +71,7 @@ fn g_group(code: u16) -> Option<usize> {
         g::G90_1 | g::G91_1 => 4,
         g::G93 | g::G94 | g::G95 => 5,
         g::G20 | g::G21 => 6,
+        g::G40 | g::G41 | g::G41_1 | g::G42 | g::G42_1 => 7,
         g::G43 | g::G43_1 | g::G49 => 8,
         g::G98 | g::G99 => 10,
         540 | 550 | 560 | 570 | 580 | 590 | 591 | 592 | 593 => 12,

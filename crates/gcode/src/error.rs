@@ -62,6 +62,22 @@ pub enum ErrorKind {
     /// A P, Q, R, L or H word in a block with no code that uses it (LinuxCNC's check).
     #[error("{0} word with no {1} to use it")]
     WordWithoutCode(char, &'static str),
+    /// Cutter radius compensation: misuse, or a path the tool cannot follow (LinuxCNC's
+    /// wording).
+    #[error("{0}")]
+    CutterComp(&'static str),
+    /// G41.1/G42.1 without the D word (the diameter).
+    #[error("{0} with no D word")]
+    CompNoD(&'static str),
+    /// G41.1/G42.1 with an L word (a lathe tool orientation) outside G18.
+    #[error("{0} with L word, but plane is not G18")]
+    CompLWordNotG18(&'static str),
+    /// G41/G42 D naming a lathe tool (orientation 1-8) outside G18.
+    #[error("{0} with lathe tool, but plane is not G18")]
+    CompLatheToolNotG18(&'static str),
+    /// G41/G42 with a D word that is not a whole, non-negative tool number.
+    #[error("{0} requires D word to be a whole number")]
+    CompDNotWhole(&'static str),
     /// A T or H word naming a tool that is not in the tool table.
     #[error("Requested tool {0} not found in the tool table")]
     ToolNotFound(u32),

@@ -15,6 +15,7 @@
 //! `(DEBUG,...)` text). One line at a time is parsed into a reused [`Line`]; only
 //! O-word lines keep their parse (loops and calls come back to them).
 
+mod cutter_comp;
 mod cycles;
 mod feed;
 mod io;
@@ -157,6 +158,8 @@ pub struct Interpreter<'a> {
     /// Canned cycles' sticky words and levels, and the path control in force.
     cycles: cycles::CycleState,
     tool: tooling::ToolState,
+    /// Cutter radius compensation (G40-G42) and its queue of held-back calls.
+    comp: cutter_comp::CompState,
     path: cycles::PathControl,
     /// The last S word, and the spindle (1 clockwise, -1 counter-clockwise, 0 stopped) and
     /// coolant states, for LinuxCNC's `#<_rpm>`, `#<_spindle_on>`, `#<_mist>`...
@@ -212,6 +215,7 @@ impl<'a> Interpreter<'a> {
             rot: 0.0,
             cycles: cycles::CycleState::default(),
             tool: tooling::ToolState::default(),
+            comp: cutter_comp::CompState::new(),
             path: cycles::PathControl::default(),
             rpm: 0.0,
             spindle: 0,
@@ -236,10 +240,23 @@ impl<'a> Interpreter<'a> {
     }
 
     fn emit(&mut self, canon: Canon) {
-        self.out.push_back(CanonCall { line: self.cur_line, n: self.cur_n, canon, machine: None });
+        let call = CanonCall { line: self.cur_line, n: self.cur_n, canon, machine: None };
+        if !self.comp.queue.is_empty() && cutter_comp::is_queued(&call.canon) {
+            self.comp.hold(call);
+        } else {
+            self.out.push_back(call);
+        }
     }
 
-    fn emit_move(&mut self, canon: Canon, m: MachineMove) {
+    fn emit_move(&mut self, canon: Canon, mut m: MachineMove) {
+        // The first move after G40 starts where the compensated tool is.
+        if let Some(at) = self.comp.exit_start.take() {
+            match &mut m {
+                MachineMove::Traverse { start, .. }
+                | MachineMove::Feed { start, .. }
+                | MachineMove::Arc { start, .. } => *start = at,
+            }
+        }
         self.out.push_back(CanonCall { line: self.cur_line, n: self.cur_n, canon, machine: Some(m) });
     }
 

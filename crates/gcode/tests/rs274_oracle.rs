@@ -23,14 +23,17 @@ use motus_gcode::{
 const TOOL_TABLE: &str = "T1 P1 D0.125 Z0.5 ;drill\nT2 P2 D0.25 Z1.25 X0.01 ;\nT7 P5 D0.5 Z-0.2 ;\n";
 
 /// Programs the Python `gcode` module cannot run: outside a running LinuxCNC it has no tool
-/// data, and a T word or M61 Q crashes it (segmentation fault, LinuxCNC 2.9). They are compared with
-/// `rs274` only.
-const WITHOUT_GCODE_MODULE: [&str; 7] = [
+/// data, and a T word, M61 Q or a G41/G42 D word (the radius of a tool in the table)
+/// crashes it (segmentation fault, LinuxCNC 2.9). They are compared with `rs274` only.
+const WITHOUT_GCODE_MODULE: &[&str] = &[
     "27_tools_and_length_offsets.ngc",
     "30_fusion_2d_contour_mm.ngc",
     "31_mastercam_pocket_helix.ngc",
     "49_g53_tool_change_with_length_offsets.ngc",
     "61_g92_g52_with_tool_offset_inch.ngc",
+    "66_cam_contour_finish_g41_mm.ngc",
+    "67_g42_outside_profile_inch.ngc",
+    "72_g18_lathe_profile_comp_inch.ngc",
     "83_rotated_inch_with_tool_x_offset.ngc",
     // M61 Q crashes it as a T word does.
     "87_m61_tool_in_spindle_and_pallet_m60.ngc",

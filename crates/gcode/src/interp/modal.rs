@@ -21,6 +21,8 @@ impl Interpreter<'_> {
         // Axis words belong to a code other than motion (G10, G28/G30, G43.1, G52, G92).
         let mut axes_used = false;
         if let Some((code, _)) = gcode(5) {
+            // LinuxCNC queues an "interpreter: feed mode ..." comment here.
+            self.comp.phantom();
             self.set_feed_mode(code);
         }
         if let Some(f) = b.f {
@@ -89,16 +91,27 @@ impl Interpreter<'_> {
             }
             self.emit(Canon::Dwell { seconds: p });
         }
-        if let Some((code, _)) = gcode(2) {
-            self.plane = match code {
+        if let Some((code, col)) = gcode(2) {
+            let plane = match code {
                 g::G17 => Plane::Xy,
                 g::G18 => Plane::Xz,
                 _ => Plane::Yz,
             };
+            if self.comp.on() && plane != self.plane {
+                return Err(comp_err(col, "Cannot change planes with cutter radius compensation on"));
+            }
+            self.plane = plane;
             self.emit(Canon::SelectPlane { plane: self.plane });
         }
         if let Some((code, _)) = gcode(6) {
-            self.set_units(if code == g::G20 { Units::Inch } else { Units::Mm });
+            let units = if code == g::G20 { Units::Inch } else { Units::Mm };
+            if units != self.units {
+                self.comp_scale(if units == Units::Inch { 1.0 / 25.4 } else { 25.4 });
+            }
+            self.set_units(units);
+        }
+        if let Some((code, col)) = gcode(7) {
+            self.cutter_comp_code(code, b, col)?;
         }
         if let Some((code, col)) = gcode(8) {
             if code == g::G43_1 {
@@ -106,7 +119,13 @@ impl Interpreter<'_> {
             }
             self.tool_length_offset(code, b, col)?;
         }
-        if let Some((code, _)) = gcode(12) {
+        if let Some((code, col)) = gcode(12) {
+            if self.comp.on() {
+                return Err(comp_err(
+                    col,
+                    "Cannot change coordinate systems with cutter radius compensation on",
+                ));
+            }
             let k = match code {
                 540 => 0,
                 550 => 1,
@@ -125,20 +144,48 @@ impl Interpreter<'_> {
                 self.emit(Canon::SetXyRotation { degrees: self.rot });
             }
         }
-        if let Some((code, _)) = gcode(13) {
+        if let Some((code, col)) = gcode(13) {
+            if self.comp.on() {
+                return Err(comp_err(col, "Cannot change control mode with cutter radius compensation on"));
+            }
             self.set_path_control(code, b);
         }
+        // A change of distance mode queues an "interpreter: ..." comment in LinuxCNC.
         if let Some((code, _)) = gcode(3) {
+            if self.absolute != (code == g::G90) {
+                self.comp.phantom();
+            }
             self.absolute = code == g::G90;
         }
         if let Some((code, _)) = gcode(4) {
+            if self.arc_absolute != (code == g::G90_1) {
+                self.comp.phantom();
+            }
             self.arc_absolute = code == g::G90_1;
         }
-        if let Some((code, _)) = gcode(10) {
+        if let Some((code, col)) = gcode(10) {
+            if self.comp.on() {
+                return Err(comp_err(col, "Cannot change retract mode with cutter radius compensation on"));
+            }
             self.cycles.retract_to_initial = code == g::G98;
         }
         let nonmodal = gcode(0);
         if let Some((code, col)) = nonmodal {
+            if self.comp.on() {
+                let msg = match code {
+                    g::G92 | g::G92_1 | g::G92_2 | g::G92_3 | g::G52 => {
+                        Some("Cannot change axis offsets with cutter radius comp")
+                    }
+                    g::G28 | g::G30 => Some("Cannot use g28 or g30 with cutter radius comp"),
+                    g::G28_1 | g::G30_1 => {
+                        Some("Cannot set reference point with cutter compensation in effect")
+                    }
+                    _ => None,
+                };
+                if let Some(msg) = msg {
+                    return Err(comp_err(col, msg));
+                }
+            }
             match code {
                 g::G10 => {
                     axes_used = true;
@@ -186,6 +233,10 @@ impl Interpreter<'_> {
         }
         let previous = self.motion;
         if let Some((code, _)) = explicit_motion {
+            if code == g::G80 {
+                // LinuxCNC: "interpreter: motion mode set to none".
+                self.comp.phantom();
+            }
             let m = match code {
                 g::G0 => Some(Motion::Rapid),
                 g::G1 => Some(Motion::Feed),
@@ -208,6 +259,9 @@ impl Interpreter<'_> {
                 };
                 let mcol = explicit_motion.map_or(b.first_col, |(_, c)| c);
                 if let Motion::Cycle(c) = m {
+                    if self.comp.on() {
+                        return Err(comp_err(mcol, "Cannot use canned cycles with cutter compensation on"));
+                    }
                     if let Some((_, col)) = g53 {
                         return Err((col, ErrorKind::G53WithoutStraight));
                     }
@@ -218,6 +272,10 @@ impl Interpreter<'_> {
             } else if let Some((_, col)) = g53 {
                 return Err((col, ErrorKind::G53WithoutStraight));
             }
+        }
+        if b.m_stop.is_some() || io.pallet {
+            // LinuxCNC sends the held-back compensated move before a stop or the end.
+            self.comp_flush_for_stop(b.first_col)?;
         }
         if io.pallet {
             // M60: the pallets are exchanged, then the program stops.
@@ -278,7 +336,12 @@ impl Interpreter<'_> {
             missing(arc || cycle || modal0 == Some(g::G10), 'R', "G2, G3, G10 or canned cycle")?;
         }
         if b.l.is_some() {
-            missing(cycle || modal0 == Some(g::G10) || io.uses_l(), 'L', "G10, canned cycle or M66")?;
+            let comp_l = matches!(code(7), Some(g::G41_1 | g::G42_1));
+            missing(
+                cycle || comp_l || modal0 == Some(g::G10) || io.uses_l(),
+                'L',
+                "G10, canned cycle or M66",
+            )?;
         }
         if b.e.is_some() {
             if self.config.m_codes == MCodeDialect::Seed {
@@ -290,7 +353,12 @@ impl Interpreter<'_> {
             missing(tool == Some(g::G43), 'H', "G43")?;
         }
         if b.d.is_some() {
-            missing(code(14) == Some(g::G96), 'D', "G96")?;
+            let comp = matches!(code(7), Some(g::G41 | g::G41_1 | g::G42 | g::G42_1));
+            missing(
+                comp || code(14) == Some(g::G96),
+                'D',
+                "G41, G41.1, G42, G42.1, G71, G71.1, G71.2 or G96",
+            )?;
         }
         if b.has_polar() {
             for (k, letter) in [(0, 'X'), (1, 'Y')] {
@@ -320,6 +388,12 @@ impl Interpreter<'_> {
         }
         // 0..=9 checked above; P0 = the active system.
         let k = if pi == 0.0 { self.coord } else { pi as usize - 1 };
+        if k == self.coord && self.comp.on() {
+            return Err(comp_err(
+                col,
+                "Cannot change the active coordinate system with cutter radius compensation on",
+            ));
+        }
         let l20 = match l.round() as i64 {
             2 => false,
             20 => true,
@@ -367,6 +441,7 @@ impl Interpreter<'_> {
     }
 
     fn program_end(&mut self, pallet: bool) {
+        self.comp.side = super::cutter_comp::Side::Off;
         // LinuxCNC: back to G54 (the current point moved without the G92 offset).
         let g54 = self.origins.first().copied().unwrap_or([0.0; 6]);
         self.rebase_current(&g54, self.rotation_of(0));
@@ -468,6 +543,11 @@ impl Interpreter<'_> {
         }
         self.emit(Canon::UseLengthUnits { units: u });
     }
+}
+
+/// A cutter compensation error at `col`.
+fn comp_err(col: u32, msg: &'static str) -> (u32, ErrorKind) {
+    (col, ErrorKind::CutterComp(msg))
 }
 
 /// What a G92-family code does with the saved offsets #5211-#5216 and their flag #5210.

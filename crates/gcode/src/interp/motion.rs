@@ -113,6 +113,28 @@ impl Interpreter<'_> {
                 *slot = radius * theta.sin();
             }
         }
+        if matches!(m, Motion::Cw | Motion::Ccw) {
+            if self.comp.arc_not_allowed {
+                return Err((
+                    mcol,
+                    ErrorKind::CutterComp(
+                        "The move just after exiting cutter compensation mode must be straight, not an arc",
+                    ),
+                ));
+            }
+        } else {
+            self.comp.arc_not_allowed = false;
+        }
+        if self.comp.active() {
+            if let Some(col) = g53 {
+                return Err((col, ErrorKind::CutterComp("Cannot use g53 with cutter radius comp")));
+            }
+            if matches!(m, Motion::Rapid | Motion::Feed) {
+                self.comp_straight(m == Motion::Rapid, b, end, mcol)?;
+                self.pos = end;
+                return Ok(());
+            }
+        }
         let ms = self.to_machine(&start);
         let me = self.to_machine(&end);
         match m {
@@ -179,6 +201,11 @@ impl Interpreter<'_> {
                         .map_err(|k| (mcol, k))?
                 };
                 let rotation = if cw { -turns } else { turns };
+                if self.comp.active() {
+                    self.comp_arc(b, end, centre, rotation, mcol)?;
+                    self.pos = end;
+                    return Ok(());
+                }
                 let arcf = ArcFeed {
                     first_end: en.0,
                     second_end: en.1,
@@ -220,7 +247,7 @@ impl Interpreter<'_> {
 
 /// The length of a straight move (program units): X Y Z, or the rotary axes' travel for a
 /// rotary-only move (as LinuxCNC's inverse-time rate takes it).
-fn straight_length(a: &Pose, b: &Pose) -> f64 {
+pub(super) fn straight_length(a: &Pose, b: &Pose) -> f64 {
     let d = |k: usize| b.get(k).copied().unwrap_or(0.0) - a.get(k).copied().unwrap_or(0.0);
     let linear = (d(0).powi(2) + d(1).powi(2) + d(2).powi(2)).sqrt();
     if linear > 0.0 {
@@ -232,7 +259,13 @@ fn straight_length(a: &Pose, b: &Pose) -> f64 {
 
 /// The length of an arc from `st` to `en` about `centre` (in its plane) with `rotation`
 /// (signed turns, LinuxCNC's), rising `axial` along the plane's normal: the helix's length.
-fn arc_length(st: (f64, f64), en: (f64, f64), centre: (f64, f64), rotation: i32, axial: f64) -> f64 {
+pub(super) fn arc_length(
+    st: (f64, f64),
+    en: (f64, f64),
+    centre: (f64, f64),
+    rotation: i32,
+    axial: f64,
+) -> f64 {
     use std::f64::consts::TAU;
     let radius = (st.0 - centre.0).hypot(st.1 - centre.1);
     let alpha = (st.1 - centre.1).atan2(st.0 - centre.0);

@@ -31,7 +31,9 @@ fn flag(b: bool) -> f64 {
 impl Interpreter<'_> {
     /// Publishes the read-only parameters for the line about to be read.
     pub(super) fn publish_system_params(&mut self) {
-        let pos = self.pos;
+        // Under cutter compensation: where the compensated tool is (as LinuxCNC's current
+        // position), not the programmed point.
+        let pos = self.comp_tool_position();
         for (k, v) in pos.iter().enumerate() {
             self.params.set(POSITION_PARAM + k, *v);
         }
@@ -86,8 +88,8 @@ impl Interpreter<'_> {
             flag(self.feed_mode == FeedMode::InverseTime),
             flag(self.feed_mode == FeedMode::PerMinute),
             flag(self.feed_mode == FeedMode::PerRevolution),
-            // Cutter compensation off (G40).
-            400.0,
+            // Cutter compensation: 400 (G40), 410 (left), 420 (right).
+            self.comp.ccomp(),
             // Radius mode (G8).
             0.0,
             1.0,

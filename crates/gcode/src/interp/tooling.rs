@@ -39,6 +39,12 @@ impl Interpreter<'_> {
 
     /// The block's T word (`SELECT_TOOL`).
     pub(super) fn select_tool(&mut self, b: &Block) -> KResult<()> {
+        if b.m_tool.is_some() && self.comp.on() {
+            return Err((
+                b.first_col,
+                ErrorKind::CutterComp("Cannot change tools with cutter radius compensation on"),
+            ));
+        }
         if let Some(t) = b.t {
             let number = tool_number(t, b.first_col)?;
             let index = self.tool_index(number, b.first_col)?;
@@ -86,6 +92,12 @@ impl Interpreter<'_> {
 
     /// G43 (H), G43.1 or G49.
     pub(super) fn tool_length_offset(&mut self, code: u16, b: &Block, col: u32) -> KResult<()> {
+        if self.comp.on() {
+            return Err((
+                col,
+                ErrorKind::CutterComp("Cannot change tool offset with cutter radius compensation on"),
+            ));
+        }
         let mm = self.units.mm_per_unit();
         let new_mm: Pose = match code {
             g::G43 => {

@@ -22,6 +22,17 @@ pub const MAX_STATUS_ENTRIES: usize = 13;
 /// PR of a pending generic async frame (SDO): 3, as the openPOWERLINK CN announces it
 /// (`oplk_mn_cn_veth_merged.pcapng` frame 882: RS=1, PR=3).
 pub const PR_GENERIC: u8 = 3;
+/// PRes sent with frames waiting (RS > 0) and no invitation, after which the next PRes
+/// announces none (RS 0) once and the real count again after it.
+///
+/// openPOWERLINK's MN (V2.7.2, `dllkcal_setAsyncPendingRequests`) queues an invitation only
+/// when a node's RS rises above the count it keeps for the node, and sets its count to RS
+/// otherwise. Its count can stay at 1 with no invitation queued: the MN then never invites
+/// the node while RS stays 1. Seen on veth at 50 ms: an SDO answer announced for 97 cycles
+/// (4.9 s), sent only after the MN's own SDO time-out and retransmission; each such stall
+/// cost 5 s of the boot, and one boot took 59 s. A PRes with RS 0 resets the MN's count, and
+/// the next one queues a fresh invitation.
+pub const REANNOUNCE_AFTER: u32 = 8;
 
 /// NMT_CycleLen_U32 (µs).
 const CYCLE_LEN: u16 = 0x1006;
@@ -157,6 +168,10 @@ pub struct ControlledNode {
     /// A SoC opened a cycle in READY_TO_OPERATE/OPERATIONAL (PReq loss monitoring).
     cycle_open: bool,
     preq_in_cycle: bool,
+    /// PRes sent with frames waiting and no invitation since ([`REANNOUNCE_AFTER`]).
+    uninvited_pres: u32,
+    /// The next PRes announces no frames waiting (RS 0), once.
+    reannounce: bool,
     /// An NMT reset asked through 0x1F9E, run once its SDO answer has left.
     pending_reset: Option<NmtCommandId>,
     /// The cycle length (0x1006) and loss-of-SoC tolerance (0x1C14) in effect: read at every
@@ -239,6 +254,8 @@ impl ControlledNode {
             soc_deadline: None,
             cycle_open: false,
             preq_in_cycle: false,
+            uninvited_pres: 0,
+            reannounce: false,
             pending_reset: None,
             cycle: Duration::from_millis(1),
             tolerance: Duration::ZERO,
@@ -523,6 +540,7 @@ impl ControlledNode {
             }
             out.push(pres);
         }
+        self.count_uninvited_pres();
         let ea = p.flags.contains(Flags::EA);
         if ea != self.ea {
             self.ea = ea;
@@ -574,6 +592,11 @@ impl ControlledNode {
                 }
             }
             RequestedService::UnspecifiedInvite => {
+                self.uninvited_pres = 0;
+                if self.reannounce {
+                    self.reannounce = false;
+                    self.pres_dirty = true;
+                }
                 if let Some(f) = self.async_queue.pop_front() {
                     self.counters.async_sent += 1;
                     self.pres_dirty = true;
@@ -770,7 +793,29 @@ impl ControlledNode {
         self.events.push(CnEvent::State { from, to, cause });
     }
 
+    /// After a PRes: counts it when frames wait for an invitation, and has the next PRes
+    /// announce none once after [`REANNOUNCE_AFTER`] of them (see there why).
+    fn count_uninvited_pres(&mut self) {
+        if self.reannounce {
+            // That PRes said RS 0: the next says the real count again.
+            self.reannounce = false;
+            self.uninvited_pres = 0;
+            self.pres_dirty = true;
+        } else if self.async_queue.is_empty() {
+            self.uninvited_pres = 0;
+        } else {
+            self.uninvited_pres += 1;
+            if self.uninvited_pres >= REANNOUNCE_AFTER {
+                self.reannounce = true;
+                self.pres_dirty = true;
+            }
+        }
+    }
+
     fn pr_rs(&self) -> PrRs {
+        if self.reannounce {
+            return PrRs { pr: 0, rs: 0, link: 0 };
+        }
         let rs = u8::try_from(self.async_queue.len().min(7)).unwrap_or(7);
         PrRs { pr: if rs > 0 { PR_GENERIC } else { 0 }, rs, link: 0 }
     }

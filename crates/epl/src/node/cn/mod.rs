@@ -41,6 +41,7 @@ mod runtime;
 mod tests;
 
 pub use machine::{
-    CnCounters, CnError, CnEvent, ControlledNode, StateCause, MAX_ASYNC_QUEUE, MAX_STATUS_ENTRIES, PR_GENERIC,
+    CnCounters, CnError, CnEvent, ControlledNode, StateCause, MAX_ASYNC_QUEUE, MAX_STATUS_ENTRIES,
+    PR_GENERIC, REANNOUNCE_AFTER,
 };
 pub use runtime::{serve_frame, CnRuntimeConfig, CnRuntimeStats, ControlledNodeRuntime, Served};

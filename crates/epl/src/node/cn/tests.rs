@@ -391,6 +391,35 @@ fn sdo_req(send: u8, recv: u8, scon: u8, rcon: u8, command: Option<SdoCommand>) 
 }
 
 #[test]
+fn an_answer_left_uninvited_is_announced_again() {
+    let now = Instant::now();
+    let mut cn = node(1, now);
+    boot(&mut cn, now, NmtState::PreOperational2);
+    cn.on_frame(now, &sdo(1, sdo_req(0, 0, 1, 0, None)));
+    assert_eq!(cn.async_pending(), 1);
+    let rs = |cn: &mut ControlledNode| {
+        let Message::PRes(p) = decode(&cn.on_frame(now, &preq(1, Flags::empty(), &[]))[0]).message else {
+            panic!()
+        };
+        p.pr_rs.rs
+    };
+    // REANNOUNCE_AFTER PRes say 1, the next 0 (the MN resets its count), then 1 again (it
+    // queues a fresh invitation); and so on while the MN does not invite.
+    let seen: Vec<u8> = (0..2 * (REANNOUNCE_AFTER + 1)).map(|_| rs(&mut cn)).collect();
+    let mut expected = vec![1; REANNOUNCE_AFTER as usize];
+    expected.push(0);
+    expected.extend(std::iter::repeat_n(1, REANNOUNCE_AFTER as usize));
+    expected.push(0);
+    assert_eq!(seen, expected);
+    // Invited: the answer leaves; nothing waits, RS 0 from then on.
+    assert_eq!(cn.on_frame(now, &soa(RequestedService::UnspecifiedInvite, 1, Flags::empty())).len(), 1);
+    assert!((0..2 * REANNOUNCE_AFTER).all(|_| rs(&mut cn) == 0));
+    // A new answer: counted from zero again.
+    cn.on_frame(now, &sdo(1, sdo_req(0, 0, 1, 0, None)));
+    assert!((0..REANNOUNCE_AFTER).all(|_| rs(&mut cn) == 1));
+}
+
+#[test]
 fn sdo_answers_wait_for_the_async_slot_announced_by_rs() {
     let now = Instant::now();
     let mut cn = node(1, now);
