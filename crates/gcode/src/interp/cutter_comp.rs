@@ -1,9 +1,10 @@
 //! Cutter radius compensation (G40, G41/G42 D tool, G41.1/G42.1 D diameter) in the XY
-//! plane, after LinuxCNC 2.9's algorithm: each compensated move is held back (queued) until
-//! the next one is known, so that a concave corner can move its end point back to where the
-//! tool touches both sides; a convex corner gets an arc about the programmed corner (a
-//! straight traverse to the arc's end for G0). Calls LinuxCNC queues with the moves (feed
-//! rate, dwell, spindle, coolant, comments) wait in the same queue; others pass it.
+//! and XZ planes, after LinuxCNC 2.9's algorithm (`interp_convert.cc`, `interp_queue.cc`):
+//! each compensated move is held back (queued) until the next one is known, so that a
+//! concave corner can move its end point back to where the tool touches both sides; a
+//! convex corner gets an arc about the programmed corner (a straight traverse to the arc's
+//! end for G0). Calls LinuxCNC queues with the moves (feed rate, dwell, spindle, coolant,
+//! comments) wait in the same queue; others pass it.
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
