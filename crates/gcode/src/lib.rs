@@ -78,7 +78,7 @@ mod value;
 pub use canon::{
     ArcFeed, Canon, CanonCall, ExArray, ExValue, MSync, MachineMove, MotionControl, Plane, Pose, Units,
 };
-pub use error::{ErrorKind, GcodeError};
+pub use error::{CompError, ErrorKind, GcodeError};
 pub use format::{format_canon, format_line, write_canon, write_line, Precision};
 pub use interp::{interpret, interpret_with, CancelFlag, Interpreter, InterpreterConfig};
 pub use tools::{parse_tool_table, Tool, ToolTableError};

@@ -7,7 +7,7 @@ use super::motion::Motion;
 use super::{origin_param, Interpreter};
 use crate::block::{g, Block};
 use crate::canon::{Canon, MSync, Plane, Pose, Units};
-use crate::error::{ErrorKind, KResult};
+use crate::error::{CompError, ErrorKind, KResult};
 
 impl Interpreter<'_> {
     /// Executes the block's words (the line's assignments, comment and EX writes are done).
@@ -88,7 +88,7 @@ impl Interpreter<'_> {
                 _ => Plane::Yz,
             };
             if self.comp.on() && plane != self.plane {
-                return Err(comp_err(col, "Cannot change planes with cutter radius compensation on"));
+                return Err(comp_err(col, CompError::PlaneChange));
             }
             self.plane = plane;
             self.emit(Canon::SelectPlane { plane: self.plane });
@@ -111,10 +111,7 @@ impl Interpreter<'_> {
         }
         if let Some((code, col)) = gcode(12) {
             if self.comp.on() {
-                return Err(comp_err(
-                    col,
-                    "Cannot change coordinate systems with cutter radius compensation on",
-                ));
+                return Err(comp_err(col, CompError::CoordSystemChange));
             }
             let k = match code {
                 540 => 0,
@@ -136,7 +133,7 @@ impl Interpreter<'_> {
         }
         if let Some((code, col)) = gcode(13) {
             if self.comp.on() {
-                return Err(comp_err(col, "Cannot change control mode with cutter radius compensation on"));
+                return Err(comp_err(col, CompError::ControlModeChange));
             }
             self.set_path_control(code, b);
         }
@@ -155,7 +152,7 @@ impl Interpreter<'_> {
         }
         if let Some((code, col)) = gcode(10) {
             if self.comp.on() {
-                return Err(comp_err(col, "Cannot change retract mode with cutter radius compensation on"));
+                return Err(comp_err(col, CompError::RetractModeChange));
             }
             self.cycles.retract_to_initial = code == g::G98;
         }
@@ -163,13 +160,9 @@ impl Interpreter<'_> {
         if let Some((code, col)) = nonmodal {
             if self.comp.on() {
                 let msg = match code {
-                    g::G92 | g::G92_1 | g::G92_2 | g::G92_3 | g::G52 => {
-                        Some("Cannot change axis offsets with cutter radius comp")
-                    }
-                    g::G28 | g::G30 => Some("Cannot use g28 or g30 with cutter radius comp"),
-                    g::G28_1 | g::G30_1 => {
-                        Some("Cannot set reference point with cutter compensation in effect")
-                    }
+                    g::G92 | g::G92_1 | g::G92_2 | g::G92_3 | g::G52 => Some(CompError::AxisOffsetChange),
+                    g::G28 | g::G30 => Some(CompError::ReferenceMove),
+                    g::G28_1 | g::G30_1 => Some(CompError::ReferenceSet),
                     _ => None,
                 };
                 if let Some(msg) = msg {
@@ -250,7 +243,7 @@ impl Interpreter<'_> {
                 let mcol = explicit_motion.map_or(b.first_col, |(_, c)| c);
                 if let Motion::Cycle(c) = m {
                     if self.comp.on() {
-                        return Err(comp_err(mcol, "Cannot use canned cycles with cutter compensation on"));
+                        return Err(comp_err(mcol, CompError::CannedCycle));
                     }
                     if let Some((_, col)) = g53 {
                         return Err((col, ErrorKind::G53WithoutStraight));
@@ -361,10 +354,7 @@ impl Interpreter<'_> {
         // 0..=9 checked above; P0 = the active system.
         let k = if pi == 0.0 { self.coord } else { pi as usize - 1 };
         if k == self.coord && self.comp.on() {
-            return Err(comp_err(
-                col,
-                "Cannot change the active coordinate system with cutter radius compensation on",
-            ));
+            return Err(comp_err(col, CompError::ActiveSystemChange));
         }
         let mut new = self.origins.get(k).copied().unwrap_or([0.0; 6]);
         let cur = self.origin();
@@ -510,8 +500,8 @@ impl Interpreter<'_> {
 }
 
 /// A cutter compensation error at `col`.
-fn comp_err(col: u32, msg: &'static str) -> (u32, ErrorKind) {
-    (col, ErrorKind::CutterComp(msg))
+fn comp_err(col: u32, e: CompError) -> (u32, ErrorKind) {
+    (col, ErrorKind::CutterComp(e))
 }
 
 /// What a G92-family code does with the saved offsets #5211-#5216 and their flag #5210.
