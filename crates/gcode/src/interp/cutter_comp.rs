@@ -359,9 +359,10 @@ impl Interpreter<'_> {
         if !self.comp.queue.is_empty() {
             self.comp.last_front = self.comp.front_arc();
         }
-        let queue = std::mem::take(&mut self.comp.queue);
+        // Taken and given back: the queue keeps its allocation.
+        let mut queue = std::mem::take(&mut self.comp.queue);
         let (dx, dz) = self.lathe_origin_shift();
-        for p in queue {
+        for p in queue.drain(..) {
             if p.phantom {
                 continue;
             }
@@ -428,6 +429,7 @@ impl Interpreter<'_> {
             }
             self.out.push_back(call);
         }
+        self.comp.queue = queue;
     }
 
     /// LinuxCNC's `latheorigin_x` / `latheorigin_z`: under G18 a lathe tool (orientation
