@@ -4,13 +4,15 @@
 //! Order within a block: O-word, comment/message, parameter assignments (all values on a
 //! line are read first, as in LinuxCNC), `EX` writes, feed mode (G93-G95), F, G96/G97, S, T,
 //! M62-M68 (LinuxCNC dialect), M6/M61,
-//! M3/M4/M5, M7/M8/M9, the seed's M-functions, G4, G17-G19, G20/G21, G43/G43.1/G49,
+//! M3/M4/M5, M7/M8/M9, the seed's M-functions, G4, G17-G19, G20/G21, G40-G42, G43/G43.1/G49,
 //! G54-G59.3, G61/G61.1/G64,
 //! G90/G91, G90.1/G91.1, G98/G99, G10/G28/G30/G52/G92.x, motion (G0-G3 with G53, canned cycles
 //! G73/G81/G82/G83/G85/G89, G80), M60 (LinuxCNC dialect), M0/M1/M2/M30.
 //!
-//! Submodules: `modal` (a block's modal changes), `motion` (moves and arcs), `cycles`
-//! (canned cycles and path control), `feed` (G93-G97), `io` (LinuxCNC's M60-M68), `reference` (G28/G30, G52), `rotation` (G10 L2 R), `tooling` (T, M6, G43/G49), `oword`
+//! Submodules: `modal` (a block's modal changes), `motion` (moves and arcs),
+//! `cutter_comp` (G40-G42 and its queue of held-back moves), `cycles`
+//! (canned cycles and path control), `feed` (G93-G97), `io` (LinuxCNC's M60-M68),
+//! `reference` (G28/G30, G52), `rotation` (G10 L2 R), `tooling` (T, M6, G43/G49), `oword`
 //! (O-word control flow), `system_params` (LinuxCNC's read-only parameters and the
 //! `(DEBUG,...)` text). One line at a time is parsed into a reused [`Line`]; only
 //! O-word lines keep their parse (loops and calls come back to them).

@@ -10,7 +10,7 @@
 use super::Interpreter;
 use crate::block::Block;
 use crate::canon::{Canon, WaitMode};
-use crate::error::{ErrorKind, KResult};
+use crate::error::{CompError, ErrorKind, KResult};
 
 /// What M60-M68 mean on a machine ([`crate::InterpreterConfig::m_codes`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -101,6 +101,18 @@ impl Interpreter<'_> {
     pub(super) fn io_words(&mut self, b: &Block, codes: IoCodes) -> KResult<()> {
         let col = b.first_col;
         let bad = |msg: &'static str| (col, ErrorKind::BadIo(msg));
+        if let (Some(m), true) = (codes.io, self.comp.on()) {
+            // LinuxCNC refuses I/O while compensated moves are held back.
+            let e = match m {
+                62 | 63 => CompError::MotionDigitalOutput,
+                64 | 65 => CompError::AuxDigitalOutput,
+                66 if b.e.is_some() => CompError::AnalogInputWait,
+                66 => CompError::DigitalInputWait,
+                67 => CompError::MotionAnalogOutput,
+                _ => CompError::AuxAnalogOutput,
+            };
+            return Err((col, ErrorKind::CutterComp(e)));
+        }
         match codes.io {
             Some(m @ 62..=65) => {
                 let p = b.p.ok_or(bad(match m {

@@ -9,7 +9,7 @@ use super::rotation::{self, rotate, rotation_param};
 use super::{origin_param, Interpreter};
 use crate::block::{g, Block};
 use crate::canon::{Canon, MSync, Plane, Pose, Units};
-use crate::error::{ErrorKind, KResult};
+use crate::error::{CompError, ErrorKind, KResult};
 
 impl Interpreter<'_> {
     /// Executes the block's words (the line's assignments, comment and EX writes are done).
@@ -98,7 +98,7 @@ impl Interpreter<'_> {
                 _ => Plane::Yz,
             };
             if self.comp.on() && plane != self.plane {
-                return Err(comp_err(col, "Cannot change planes with cutter radius compensation on"));
+                return Err(comp_err(col, CompError::PlaneChange));
             }
             self.plane = plane;
             self.emit(Canon::SelectPlane { plane: self.plane });
@@ -121,10 +121,7 @@ impl Interpreter<'_> {
         }
         if let Some((code, col)) = gcode(12) {
             if self.comp.on() {
-                return Err(comp_err(
-                    col,
-                    "Cannot change coordinate systems with cutter radius compensation on",
-                ));
+                return Err(comp_err(col, CompError::CoordSystemChange));
             }
             let k = match code {
                 540 => 0,
@@ -146,7 +143,7 @@ impl Interpreter<'_> {
         }
         if let Some((code, col)) = gcode(13) {
             if self.comp.on() {
-                return Err(comp_err(col, "Cannot change control mode with cutter radius compensation on"));
+                return Err(comp_err(col, CompError::ControlModeChange));
             }
             self.set_path_control(code, b);
         }
@@ -165,7 +162,7 @@ impl Interpreter<'_> {
         }
         if let Some((code, col)) = gcode(10) {
             if self.comp.on() {
-                return Err(comp_err(col, "Cannot change retract mode with cutter radius compensation on"));
+                return Err(comp_err(col, CompError::RetractModeChange));
             }
             self.cycles.retract_to_initial = code == g::G98;
         }
@@ -173,13 +170,9 @@ impl Interpreter<'_> {
         if let Some((code, col)) = nonmodal {
             if self.comp.on() {
                 let msg = match code {
-                    g::G92 | g::G92_1 | g::G92_2 | g::G92_3 | g::G52 => {
-                        Some("Cannot change axis offsets with cutter radius comp")
-                    }
-                    g::G28 | g::G30 => Some("Cannot use g28 or g30 with cutter radius comp"),
-                    g::G28_1 | g::G30_1 => {
-                        Some("Cannot set reference point with cutter compensation in effect")
-                    }
+                    g::G92 | g::G92_1 | g::G92_2 | g::G92_3 | g::G52 => Some(CompError::AxisOffsetChange),
+                    g::G28 | g::G30 => Some(CompError::ReferenceMove),
+                    g::G28_1 | g::G30_1 => Some(CompError::ReferenceSet),
                     _ => None,
                 };
                 if let Some(msg) = msg {
@@ -260,7 +253,7 @@ impl Interpreter<'_> {
                 let mcol = explicit_motion.map_or(b.first_col, |(_, c)| c);
                 if let Motion::Cycle(c) = m {
                     if self.comp.on() {
-                        return Err(comp_err(mcol, "Cannot use canned cycles with cutter compensation on"));
+                        return Err(comp_err(mcol, CompError::CannedCycle));
                     }
                     if let Some((_, col)) = g53 {
                         return Err((col, ErrorKind::G53WithoutStraight));
@@ -389,10 +382,7 @@ impl Interpreter<'_> {
         // 0..=9 checked above; P0 = the active system.
         let k = if pi == 0.0 { self.coord } else { pi as usize - 1 };
         if k == self.coord && self.comp.on() {
-            return Err(comp_err(
-                col,
-                "Cannot change the active coordinate system with cutter radius compensation on",
-            ));
+            return Err(comp_err(col, CompError::ActiveSystemChange));
         }
         let l20 = match l.round() as i64 {
             2 => false,
@@ -546,8 +536,8 @@ impl Interpreter<'_> {
 }
 
 /// A cutter compensation error at `col`.
-fn comp_err(col: u32, msg: &'static str) -> (u32, ErrorKind) {
-    (col, ErrorKind::CutterComp(msg))
+fn comp_err(col: u32, e: CompError) -> (u32, ErrorKind) {
+    (col, ErrorKind::CutterComp(e))
 }
 
 /// What a G92-family code does with the saved offsets #5211-#5216 and their flag #5210.

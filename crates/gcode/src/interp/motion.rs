@@ -7,7 +7,7 @@ use super::{rotation, Interpreter};
 use crate::arc;
 use crate::block::Block;
 use crate::canon::{ArcFeed, Canon, MachineMove, Plane, Pose};
-use crate::error::{ErrorKind, KResult};
+use crate::error::{CompError, ErrorKind, KResult};
 
 /// Modal motion.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -115,19 +115,14 @@ impl Interpreter<'_> {
         }
         if matches!(m, Motion::Cw | Motion::Ccw) {
             if self.comp.arc_not_allowed {
-                return Err((
-                    mcol,
-                    ErrorKind::CutterComp(
-                        "The move just after exiting cutter compensation mode must be straight, not an arc",
-                    ),
-                ));
+                return Err((mcol, ErrorKind::CutterComp(CompError::ArcAfterExit)));
             }
         } else {
             self.comp.arc_not_allowed = false;
         }
         if self.comp.active() {
             if let Some(col) = g53 {
-                return Err((col, ErrorKind::CutterComp("Cannot use g53 with cutter radius comp")));
+                return Err((col, ErrorKind::CutterComp(CompError::MachineCoordinates)));
             }
             if matches!(m, Motion::Rapid | Motion::Feed) {
                 self.comp_straight(m == Motion::Rapid, b, end, mcol)?;

@@ -8,7 +8,7 @@
 use super::Interpreter;
 use crate::block::{g, Block};
 use crate::canon::{Canon, Pose};
-use crate::error::{ErrorKind, KResult};
+use crate::error::{CompError, ErrorKind, KResult};
 
 /// The first of the parameters of the tool in the spindle (#5400 = its number).
 const TOOL_PARAMS: usize = 5400;
@@ -40,10 +40,7 @@ impl Interpreter<'_> {
     /// The block's T word (`SELECT_TOOL`).
     pub(super) fn select_tool(&mut self, b: &Block) -> KResult<()> {
         if b.m_tool.is_some() && self.comp.on() {
-            return Err((
-                b.first_col,
-                ErrorKind::CutterComp("Cannot change tools with cutter radius compensation on"),
-            ));
+            return Err((b.first_col, ErrorKind::CutterComp(CompError::ToolChange)));
         }
         if let Some(t) = b.t {
             let number = tool_number(t, b.first_col)?;
@@ -93,10 +90,7 @@ impl Interpreter<'_> {
     /// G43 (H), G43.1 or G49.
     pub(super) fn tool_length_offset(&mut self, code: u16, b: &Block, col: u32) -> KResult<()> {
         if self.comp.on() {
-            return Err((
-                col,
-                ErrorKind::CutterComp("Cannot change tool offset with cutter radius compensation on"),
-            ));
+            return Err((col, ErrorKind::CutterComp(CompError::ToolOffsetChange)));
         }
         let mm = self.units.mm_per_unit();
         let new_mm: Pose = match code {
