@@ -1,6 +1,6 @@
 //! Command-line definitions of the G-code / CNC commands.
 
-use clap::{Args, Subcommand};
+use clap::{Args, Subcommand, ValueEnum};
 use std::path::PathBuf;
 
 /// `motus gcode` commands.
@@ -30,6 +30,19 @@ pub struct GcodeFileArgs {
     /// The tool table for T, M6 and G43 (LinuxCNC's `.tbl` format, lengths in mm).
     #[arg(long)]
     pub tool_table: Option<PathBuf>,
+    /// What M60-M68 mean: the seed's M-functions, or LinuxCNC's pallet, tool and I/O codes.
+    #[arg(long, value_enum, default_value = "seed")]
+    pub dialect: GcodeDialect,
+}
+
+/// The machine's M-code dialect (`--dialect`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum GcodeDialect {
+    /// M60-M68 are the seed's M-functions (`M_FUNCTION(62, SYNC)`).
+    Seed,
+    /// M60-M68 as in LinuxCNC: pallet shuttle, M61 Q, digital/analog outputs, M66 wait.
+    #[value(name = "linuxcnc")]
+    LinuxCnc,
 }
 
 /// Options of `motus gcode canon`.

@@ -119,6 +119,9 @@ pub(crate) struct Block {
     pub(crate) t: Option<f64>,
     pub(crate) h: Option<f64>,
     pub(crate) d: Option<f64>,
+    /// The E word (M66-M68's analog channel in the LinuxCNC dialect) and its column.
+    pub(crate) e: Option<f64>,
+    pub(crate) e_col: u32,
     /// Polar radius `@` and angle `^` (degrees).
     pub(crate) polar: [Option<f64>; 2],
     /// Column of the first axis word (for error positions).
@@ -231,6 +234,10 @@ pub(crate) fn read_block(b: &mut Block, line: &Line, params: &Params, stack: &mu
             b'T' => set(&mut b.t, b'T')?,
             b'H' => set(&mut b.h, b'H')?,
             b'D' => set(&mut b.d, b'D')?,
+            b'E' => {
+                set(&mut b.e, b'E')?;
+                b.e_col = col;
+            }
             b'@' | b'^' => {
                 let k = usize::from(w.letter == b'^');
                 if let Some(slot) = b.polar.get_mut(k) {

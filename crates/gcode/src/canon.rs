@@ -138,7 +138,8 @@ pub enum Canon {
         /// Offset per axis.
         offset: Pose,
     },
-    /// `SET_XY_ROTATION(degrees)` (always 0 here: rotation is not implemented).
+    /// `SET_XY_ROTATION(degrees)`: the active coordinate system's rotation about Z
+    /// (G10 L2 R); positions in the calls stay unrotated, [`MachineMove`]s are rotated.
     SetXyRotation {
         /// Degrees.
         degrees: f64,
@@ -253,6 +254,47 @@ pub enum Canon {
     PalletShuttle,
     /// `PROGRAM_END()` (M2/M30).
     ProgramEnd,
+    /// `SET_MOTION_OUTPUT_BIT(n)` / `CLEAR_MOTION_OUTPUT_BIT(n)` (M62/M63: with the next
+    /// move's start) or `SET_AUX_OUTPUT_BIT(n)` / `CLEAR_AUX_OUTPUT_BIT(n)` (M64/M65: at
+    /// once). LinuxCNC dialect only ([`crate::MCodeDialect::LinuxCnc`]).
+    DigitalOutput {
+        /// The output (the P word, rounded as LinuxCNC rounds it).
+        index: i32,
+        /// Set (M62/M64) or cleared (M63/M65).
+        on: bool,
+        /// Synchronised with motion (M62/M63) rather than immediate (M64/M65).
+        with_motion: bool,
+    },
+    /// `SET_MOTION_OUTPUT_VALUE(n,v)` (M67: with the next move) or
+    /// `SET_AUX_OUTPUT_VALUE(n,v)` (M68: at once). LinuxCNC dialect only.
+    AnalogOutput {
+        /// The output (the E word, rounded; never negative).
+        index: i32,
+        /// The value (the Q word).
+        value: f64,
+        /// Synchronised with motion (M67) rather than immediate (M68).
+        with_motion: bool,
+    },
+    /// `WAIT(n, DIGITAL_INPUT|ANALOG_INPUT, mode, timeout)`: M66, the program waits on an
+    /// input (LinuxCNC's `WAIT`; its standalone `rs274` prints nothing for it). The value
+    /// read is the machine's business: the interpreter leaves #5399 as it is. LinuxCNC
+    /// dialect only.
+    WaitInput {
+        /// The input (P word for a digital one, E word for an analog one).
+        index: i32,
+        /// Digital (P) or analog (E).
+        analog: bool,
+        /// The L word: what to wait for.
+        mode: WaitMode,
+        /// The Q word, seconds (0: none).
+        timeout: f64,
+    },
+    /// `CHANGE_TOOL_NUMBER(p)`: M61 Q, the spindle's tool is declared without a change;
+    /// `p` is the tool's place in the table (0 = no tool). LinuxCNC dialect only.
+    ChangeToolNumber {
+        /// Place in the table.
+        index: usize,
+    },
     /// `M_FUNCTION(n, SYNC|ASYNC)`: one of the seed's M-functions 0..=1023 (bit n).
     MFunction {
         /// 0..=1023.
@@ -269,6 +311,35 @@ pub enum Canon {
         /// The typed value.
         value: ExValue,
     },
+}
+
+/// What M66 waits for (its L word, LinuxCNC's `WAIT_MODE`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WaitMode {
+    /// L0: no wait, the input is read at once.
+    Immediate,
+    /// L1: a rising edge.
+    Rise,
+    /// L2: a falling edge.
+    Fall,
+    /// L3: the input high.
+    High,
+    /// L4: the input low.
+    Low,
+}
+
+impl WaitMode {
+    /// LinuxCNC's number for the mode (the L word).
+    pub fn number(self) -> u8 {
+        match self {
+            WaitMode::Immediate => 0,
+            WaitMode::Rise => 1,
+            WaitMode::Fall => 2,
+            WaitMode::High => 3,
+            WaitMode::Low => 4,
+        }
+    }
 }
 
 /// How the path joins its moves (LinuxCNC's `CANON_MOTION_MODE`).

@@ -62,10 +62,9 @@ pub enum ErrorKind {
     /// A P, Q, R, L or H word in a block with no code that uses it (LinuxCNC's check).
     #[error("{0} word with no {1} to use it")]
     WordWithoutCode(char, &'static str),
-    /// Cutter radius compensation: misuse, or a path the tool cannot follow (LinuxCNC's
-    /// wording).
+    /// Cutter radius compensation: misuse, or a path the tool cannot follow.
     #[error("{0}")]
-    CutterComp(&'static str),
+    CutterComp(CompError),
     /// G41.1/G42.1 without the D word (the diameter).
     #[error("{0} with no D word")]
     CompNoD(&'static str),
@@ -211,6 +210,9 @@ pub enum ErrorKind {
     /// G10 with a bad or missing L/P.
     #[error("Invalid G10 use: {0}")]
     BadG10(&'static str),
+    /// M60-M68 in the LinuxCNC dialect with missing or bad words (LinuxCNC's message).
+    #[error("{0}")]
+    BadIo(&'static str),
     /// G92 without an axis word.
     #[error("All axes missing with g92")]
     G92NoAxes,
@@ -291,6 +293,110 @@ impl fmt::Display for GcodeError {
 }
 
 impl std::error::Error for GcodeError {}
+
+/// A cutter radius compensation error (LinuxCNC's wording).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum CompError {
+    /// G41/G42 under G19.
+    #[error("Cutter radius compensation allowed only in XY, XZ planes")]
+    PlaneNotXyOrXz,
+    /// G41/G42 while compensation is on.
+    #[error("Cannot turn cutter radius comp on when on")]
+    AlreadyOn,
+    /// A G41.1/G42.1 L word outside 0-9.
+    #[error("Invalid tool orientation")]
+    InvalidOrientation,
+    /// G17/G18/G19 changing the plane while on.
+    #[error("Cannot change planes with cutter radius compensation on")]
+    PlaneChange,
+    /// G54-G59.3 while on.
+    #[error("Cannot change coordinate systems with cutter radius compensation on")]
+    CoordSystemChange,
+    /// G10 L2/L20 on the active coordinate system while on.
+    #[error("Cannot change the active coordinate system with cutter radius compensation on")]
+    ActiveSystemChange,
+    /// G61/G61.1/G64 while on.
+    #[error("Cannot change control mode with cutter radius compensation on")]
+    ControlModeChange,
+    /// G98/G99 while on.
+    #[error("Cannot change retract mode with cutter radius compensation on")]
+    RetractModeChange,
+    /// G52/G92/G92.x while on.
+    #[error("Cannot change axis offsets with cutter radius comp")]
+    AxisOffsetChange,
+    /// G28/G30 while on.
+    #[error("Cannot use g28 or g30 with cutter radius comp")]
+    ReferenceMove,
+    /// G28.1/G30.1 while on.
+    #[error("Cannot set reference point with cutter compensation in effect")]
+    ReferenceSet,
+    /// A canned cycle while on.
+    #[error("Cannot use canned cycles with cutter compensation on")]
+    CannedCycle,
+    /// G53 while on.
+    #[error("Cannot use g53 with cutter radius comp")]
+    MachineCoordinates,
+    /// M6 while on.
+    #[error("Cannot change tools with cutter radius compensation on")]
+    ToolChange,
+    /// G43/G43.1/G49 while on.
+    #[error("Cannot change tool offset with cutter radius compensation on")]
+    ToolOffsetChange,
+    /// M62/M63 while on.
+    #[error("Cannot set motion output with cutter radius compensation on")]
+    MotionDigitalOutput,
+    /// M64/M65 while on.
+    #[error("Cannot set auxiliary digital output with cutter radius compensation on")]
+    AuxDigitalOutput,
+    /// M66 P while on.
+    #[error("Cannot wait for digital input with cutter radius compensation on")]
+    DigitalInputWait,
+    /// M66 E while on.
+    #[error("Cannot wait for analog input with cutter radius compensation on")]
+    AnalogInputWait,
+    /// M67 while on.
+    #[error("Cannot set motion analog output with cutter radius compensation on")]
+    MotionAnalogOutput,
+    /// M68 while on.
+    #[error("Cannot set auxiliary analog output with cutter radius compensation on")]
+    AuxAnalogOutput,
+    /// An arc as the first move after G40.
+    #[error("The move just after exiting cutter compensation mode must be straight, not an arc")]
+    ArcAfterExit,
+    /// A straight entry move not longer than the tool radius.
+    #[error("Length of cutter compensation entry move is not greater than the tool radius")]
+    EntryTooShort,
+    /// An entry arc ending within a tool radius of its start.
+    #[error("Radius of cutter compensation entry arc is not greater than the tool radius")]
+    EntryArcTooShort,
+    /// An arc the tool, inside it, does not fit in.
+    #[error("Tool radius not less than arc radius with comp")]
+    ArcTooSmall,
+    /// A straight move going straight back.
+    #[error("Zero degree inside corner is invalid for cutter compensation")]
+    ZeroDegreeCorner,
+    /// A concave corner moves a held feed move's end behind its start.
+    #[error("Straight feed in concave corner cannot be reached by the tool without gouging")]
+    StraightFeedGouge,
+    /// A concave corner moves a held traverse's end behind its start.
+    #[error("Straight traverse in concave corner cannot be reached by the tool without gouging")]
+    StraightTraverseGouge,
+    /// A concave corner the arc cannot reach, or lengthens a held arc.
+    #[error("Arc move in concave corner cannot be reached by the tool without gouging")]
+    ArcGouge,
+    /// An arc then a line meeting where the tool cannot fit.
+    #[error("Arc to straight motion makes a corner the compensated tool can't fit in without gouging")]
+    ArcToStraightGouge,
+    /// Two arcs meeting where the tool cannot fit.
+    #[error("Arc to arc motion makes a corner the compensated tool can't fit in without gouging")]
+    ArcToArcGouge,
+    /// Two arcs with the same centre meeting in a concave corner.
+    #[error("Arc to arc motion is invalid because the arcs have the same center")]
+    ArcToArcSameCentre,
+    /// Moving a held arc's end changed its radius (a bug, as LinuxCNC words it).
+    #[error("BUG: cutter compensation has generated an invalid arc")]
+    InvalidArc,
+}
 
 /// An error without position yet (filled in by the caller that knows the column).
 pub(crate) type KResult<T> = Result<T, (u32, ErrorKind)>;

@@ -223,6 +223,27 @@ pub fn write_canon(o: &mut String, c: &Canon, p: Precision) {
         Canon::ProgramStop => o.push_str("PROGRAM_STOP()"),
         Canon::PalletShuttle => o.push_str("PALLET_SHUTTLE()"),
         Canon::ProgramEnd => o.push_str("PROGRAM_END()"),
+        Canon::DigitalOutput { index, on, with_motion } => {
+            let verb = if *on { "SET" } else { "CLEAR" };
+            let kind = if *with_motion { "MOTION" } else { "AUX" };
+            let _ = write!(o, "{verb}_{kind}_OUTPUT_BIT({index})");
+        }
+        Canon::AnalogOutput { index, value, with_motion } => {
+            let kind = if *with_motion { "MOTION" } else { "AUX" };
+            let _ = match p {
+                Precision::Full => write!(o, "SET_{kind}_OUTPUT_VALUE({index},{value})"),
+                Precision::Rs274 => write!(o, "SET_{kind}_OUTPUT_VALUE({index},{value:.6})"),
+            };
+        }
+        Canon::WaitInput { index, analog, mode, timeout } => {
+            let kind = if *analog { "ANALOG_INPUT" } else { "DIGITAL_INPUT" };
+            let _ = write!(o, "WAIT({index}, {kind}, {}, ", mode.number());
+            num(o, *timeout, p);
+            o.push(')');
+        }
+        Canon::ChangeToolNumber { index } => {
+            let _ = write!(o, "CHANGE_TOOL_NUMBER({index})");
+        }
         Canon::MFunction { number, sync } => {
             let s = match sync {
                 MSync::Sync => "SYNC",
@@ -304,6 +325,10 @@ mod tests {
         );
         let e = Canon::ExternalParameter { array: ExArray::W, index: 60, value: ExValue::W(3600) };
         assert_eq!(format_canon(&e, Precision::Full), "EXTERNAL_PARAMETER(W, 60, 3600)");
+        let io = Canon::AnalogOutput { index: 2, value: -1.0, with_motion: false };
+        assert_eq!(format_canon(&io, Precision::Rs274), "SET_AUX_OUTPUT_VALUE(2,-1.000000)");
+        let io = Canon::DigitalOutput { index: 3, on: false, with_motion: true };
+        assert_eq!(format_canon(&io, Precision::Full), "CLEAR_MOTION_OUTPUT_BIT(3)");
         let m = Canon::MFunction { number: 60, sync: MSync::Sync };
         assert_eq!(format_canon(&m, Precision::Full), "M_FUNCTION(60, SYNC)");
     }

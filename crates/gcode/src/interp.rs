@@ -2,14 +2,17 @@
 //! canonical calls one by one (a pull-based, sans-IO iterator).
 //!
 //! Order within a block: O-word, comment/message, parameter assignments (all values on a
-//! line are read first, as in LinuxCNC), `EX` writes, feed mode (G93-G95), F, G96/G97, S, T, M6,
-//! M3/M4/M5, M7/M8/M9, the seed's M-functions, G4, G17-G19, G20/G21, G43/G43.1/G49,
+//! line are read first, as in LinuxCNC), `EX` writes, feed mode (G93-G95), F, G96/G97, S, T,
+//! M62-M68 (LinuxCNC dialect), M6/M61,
+//! M3/M4/M5, M7/M8/M9, the seed's M-functions, G4, G17-G19, G20/G21, G40-G42, G43/G43.1/G49,
 //! G54-G59.3, G61/G61.1/G64,
 //! G90/G91, G90.1/G91.1, G98/G99, G10/G28/G30/G52/G92.x, motion (G0-G3 with G53, canned cycles
-//! G73/G81/G82/G83/G85/G89, G80), M0/M1/M2/M30.
+//! G73/G81/G82/G83/G85/G89, G80), M60 (LinuxCNC dialect), M0/M1/M2/M30.
 //!
-//! Submodules: `modal` (a block's modal changes), `motion` (moves and arcs), `cycles`
-//! (canned cycles and path control), `feed` (G93-G97), `reference` (G28/G30, G52), `tooling` (T, M6, G43/G49), `oword`
+//! Submodules: `modal` (a block's modal changes), `motion` (moves and arcs),
+//! `cutter_comp` (G40-G42 and its queue of held-back moves), `cycles`
+//! (canned cycles and path control), `feed` (G93-G97), `io` (LinuxCNC's M60-M68),
+//! `reference` (G28/G30, G52), `rotation` (G10 L2 R), `tooling` (T, M6, G43/G49), `oword`
 //! (O-word control flow), `system_params` (LinuxCNC's read-only parameters and the
 //! `(DEBUG,...)` text). One line at a time is parsed into a reused [`Line`]; only
 //! O-word lines keep their parse (loops and calls come back to them).
@@ -17,10 +20,12 @@
 mod cutter_comp;
 mod cycles;
 mod feed;
+mod io;
 mod modal;
 mod motion;
 mod oword;
 mod reference;
+mod rotation;
 mod system_params;
 mod tooling;
 
@@ -28,6 +33,7 @@ use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+pub use self::io::MCodeDialect;
 use self::motion::Motion;
 use self::oword::{index_owords, is_oword_line, CallFrame, OLine};
 use crate::block::{read_block, Block};
@@ -56,6 +62,9 @@ pub struct InterpreterConfig {
     /// [`ErrorKind::Cancelled`] at the line it was about to execute. `None`: not
     /// cancellable.
     pub cancel: Option<CancelFlag>,
+    /// What M60-M68 mean: the seed's M-functions (the default) or LinuxCNC's pallet,
+    /// tool and I/O codes (see [`MCodeDialect`]).
+    pub m_codes: MCodeDialect,
 }
 
 /// A shared cancellation flag for [`InterpreterConfig::cancel`] (the interpreter only reads
@@ -97,6 +106,7 @@ impl Default for InterpreterConfig {
             max_call_depth: 64,
             tools: Vec::new(),
             cancel: None,
+            m_codes: MCodeDialect::Seed,
         }
     }
 }
@@ -145,6 +155,8 @@ pub struct Interpreter<'a> {
     coord: usize,
     origins: [Pose; 9],
     g92: Pose,
+    /// The active system's XY rotation, degrees (`rotation.rs`).
+    rot: f64,
     /// Canned cycles' sticky words and levels, and the path control in force.
     cycles: cycles::CycleState,
     tool: tooling::ToolState,
@@ -202,6 +214,7 @@ impl<'a> Interpreter<'a> {
             coord: 0,
             origins: [[0.0; 6]; 9],
             g92: [0.0; 6],
+            rot: 0.0,
             cycles: cycles::CycleState::default(),
             tool: tooling::ToolState::default(),
             comp: cutter_comp::CompState::new(),
@@ -402,7 +415,7 @@ impl<'a> Interpreter<'a> {
             let c = ex_value(w.array, w.index, v).map_err(|e| (w.col, e))?;
             self.emit(c);
         }
-        self.execute_block(&block)
+        self.execute_block(&mut block)
     }
 }
 

@@ -4,8 +4,8 @@
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use motus_gcode::{
-    format_canon, interpret, interpret_with, Canon, ErrorKind, Interpreter, InterpreterConfig, MachineMove,
-    Precision,
+    format_canon, interpret, interpret_with, Canon, ErrorKind, Interpreter, InterpreterConfig, MCodeDialect,
+    MachineMove, Precision,
 };
 
 fn text(src: &str, cfg: InterpreterConfig) -> Vec<String> {
@@ -163,5 +163,67 @@ fn arc_radius_errors_read_as_linuxcnc_words_them() {
     for (prog, rs274) in cases {
         let e = motus_gcode::interpret(prog).unwrap_err();
         assert_eq!(e.kind.to_string(), rs274);
+    }
+}
+
+#[test]
+fn machine_moves_follow_the_coordinate_system_rotation() {
+    // G55 at (100, 50) turned 90 degrees, G92 shifts 1 mm along the rotated X: program
+    // (10, 0) is at machine (100, 50) + R90 (11, 0) = (100, 61); the arc's centre
+    // (10, 5) + (1, 0) turns to (-5, 11).
+    let src =
+        "G21 G90\nG10 L2 P2 X100 Y50 R90\nG55\nG0 X0 Y0\nG92 X-1\nG1 X10 Y0 F100\nG3 X10 Y10 I0 J5\nM2\n";
+    let calls = interpret(src).unwrap();
+    let moves: Vec<MachineMove> = calls.iter().filter_map(|c| c.machine).collect();
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-9;
+    let MachineMove::Feed { end, .. } = moves[1] else { panic!("{:?}", moves[1]) };
+    assert!(close(end[0], 100.0) && close(end[1], 61.0), "{end:?}");
+    let MachineMove::Arc { end, centre, .. } = moves[2] else { panic!("{:?}", moves[2]) };
+    assert!(close(end[0], 90.0) && close(end[1], 61.0), "{end:?}");
+    assert!(close(centre[0], 95.0) && close(centre[1], 61.0), "{centre:?}");
+    // The canonical calls stay in the program's (unrotated) coordinates.
+    assert!(calls.iter().any(|c| c.canon == Canon::SetXyRotation { degrees: 90.0 }));
+    assert!(calls.iter().any(|c| matches!(c.canon, Canon::StraightFeed { end } if end[0] == 10.0)));
+}
+
+#[test]
+fn m60_to_m68_follow_the_machine_dialect() {
+    let src = "G0 X1\nM62 P1\nM66 P2 L3 Q1.5\nM67 E0 Q2.5\nM60\nM100 P1\nM2\n";
+    // The seed's M-functions take P and Q words, not L or E.
+    let seed = text(&src.replace(" L3", "").replace("E0 ", ""), InterpreterConfig::default());
+    assert_eq!(
+        seed[..6],
+        [
+            "STRAIGHT_TRAVERSE(1, 0, 0, 0, 0, 0)",
+            "M_FUNCTION(62, SYNC)",
+            "M_FUNCTION(66, SYNC)",
+            "M_FUNCTION(67, SYNC)",
+            "M_FUNCTION(60, SYNC)",
+            "M_FUNCTION(100, SYNC)"
+        ]
+    );
+    let cfg = InterpreterConfig { m_codes: MCodeDialect::LinuxCnc, ..InterpreterConfig::default() };
+    let linuxcnc = text(src, cfg.clone());
+    assert_eq!(
+        linuxcnc[..7],
+        [
+            "STRAIGHT_TRAVERSE(1, 0, 0, 0, 0, 0)",
+            "SET_MOTION_OUTPUT_BIT(1)",
+            "WAIT(2, DIGITAL_INPUT, 3, 1.5)",
+            "SET_MOTION_OUTPUT_VALUE(0,2.5)",
+            "PALLET_SHUTTLE()",
+            "PROGRAM_STOP()",
+            "M_FUNCTION(100, SYNC)"
+        ]
+    );
+    // An E word is only read in the LinuxCNC dialect.
+    let e = interpret_with("M66 E1\nM2\n", InterpreterConfig::default()).unwrap_err();
+    assert_eq!((e.column, e.kind), (5, ErrorKind::UnsupportedLetter('E')));
+    // Refused here although the standalone rs274 accepts them: M67/M68 without a value
+    // (LinuxCNC would send -1) and an M66 wait type outside 0..=4.
+    for bad in ["M67 E1\nM2\n", "M68 E0\nM2\n", "M66 P1 L7 Q1\nM2\n"] {
+        let e = interpret_with(bad, cfg.clone()).unwrap_err();
+        assert!(matches!(e.kind, ErrorKind::BadIo(_)), "{bad}: {e}");
+        assert_eq!(e.line, 1);
     }
 }

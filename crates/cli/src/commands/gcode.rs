@@ -4,9 +4,9 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use motus_gcode::{format_canon, format_line, Interpreter, InterpreterConfig, Precision};
+use motus_gcode::{format_canon, format_line, Interpreter, InterpreterConfig, MCodeDialect, Precision};
 
-use crate::cli_cnc::{GcodeCanonArgs, GcodeCommand, GcodeFileArgs};
+use crate::cli_cnc::{GcodeCanonArgs, GcodeCommand, GcodeDialect, GcodeFileArgs};
 
 /// Runs a `gcode` command.
 pub fn run(cmd: GcodeCommand) -> Result<()> {
@@ -37,7 +37,16 @@ pub fn config(a: &GcodeFileArgs) -> Result<InterpreterConfig> {
         }
         None => Vec::new(),
     };
-    Ok(InterpreterConfig { async_m_functions: a.async_m.clone(), tools, ..InterpreterConfig::default() })
+    let m_codes = match a.dialect {
+        GcodeDialect::Seed => MCodeDialect::Seed,
+        GcodeDialect::LinuxCnc => MCodeDialect::LinuxCnc,
+    };
+    Ok(InterpreterConfig {
+        async_m_functions: a.async_m.clone(),
+        tools,
+        m_codes,
+        ..InterpreterConfig::default()
+    })
 }
 
 fn check(a: &GcodeFileArgs) -> Result<()> {

@@ -1,9 +1,10 @@
 //! Cutter radius compensation (G40, G41/G42 D tool, G41.1/G42.1 D diameter) in the XY
-//! plane, after LinuxCNC 2.9's algorithm: each compensated move is held back (queued) until
-//! the next one is known, so that a concave corner can move its end point back to where the
-//! tool touches both sides; a convex corner gets an arc about the programmed corner (a
-//! straight traverse to the arc's end for G0). Calls LinuxCNC queues with the moves (feed
-//! rate, dwell, spindle, coolant, comments) wait in the same queue; others pass it.
+//! and XZ planes, after LinuxCNC 2.9's algorithm (`interp_convert.cc`, `interp_queue.cc`):
+//! each compensated move is held back (queued) until the next one is known, so that a
+//! concave corner can move its end point back to where the tool touches both sides; a
+//! convex corner gets an arc about the programmed corner (a straight traverse to the arc's
+//! end for G0). Calls LinuxCNC queues with the moves (feed rate, dwell, spindle, coolant,
+//! comments) wait in the same queue; others pass it.
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
@@ -11,7 +12,7 @@ use super::motion::{arc_length, straight_length};
 use super::Interpreter;
 use crate::block::{g, Block};
 use crate::canon::{ArcFeed, Canon, CanonCall, MachineMove, Plane, Pose};
-use crate::error::{ErrorKind, KResult};
+use crate::error::{CompError, ErrorKind, KResult};
 
 /// LinuxCNC's `TOLERANCE_CONCAVE_CORNER` (radians).
 const SMALL: f64 = 0.05;
@@ -201,8 +202,8 @@ fn with_plane(axes: Axes, p: &Pose, x: f64, y: f64, z: f64) -> Pose {
 }
 
 /// A compensation error.
-fn cc(col: u32, msg: &'static str) -> (u32, ErrorKind) {
-    (col, ErrorKind::CutterComp(msg))
+fn cc(col: u32, e: CompError) -> (u32, ErrorKind) {
+    (col, ErrorKind::CutterComp(e))
 }
 
 impl Interpreter<'_> {
@@ -213,10 +214,10 @@ impl Interpreter<'_> {
             return Ok(());
         }
         if self.plane == Plane::Yz {
-            return Err(cc(col, "Cutter radius compensation allowed only in XY, XZ planes"));
+            return Err(cc(col, CompError::PlaneNotXyOrXz));
         }
         if self.comp.on() {
-            return Err(cc(col, "Cannot turn cutter radius comp on when on"));
+            return Err(cc(col, CompError::AlreadyOn));
         }
         let name = match code {
             g::G41 => "G41",
@@ -232,7 +233,7 @@ impl Interpreter<'_> {
                 Some(l) => {
                     let r = crate::expr::round(l);
                     if !(0.0..=9.0).contains(&r) {
-                        return Err(cc(col, "Invalid tool orientation"));
+                        return Err(cc(col, CompError::InvalidOrientation));
                     }
                     // 0..=9.
                     r as u8
@@ -358,9 +359,10 @@ impl Interpreter<'_> {
         if !self.comp.queue.is_empty() {
             self.comp.last_front = self.comp.front_arc();
         }
-        let queue = std::mem::take(&mut self.comp.queue);
+        // Taken and given back: the queue keeps its allocation.
+        let mut queue = std::mem::take(&mut self.comp.queue);
         let (dx, dz) = self.lathe_origin_shift();
-        for p in queue {
+        for p in queue.drain(..) {
             if p.phantom {
                 continue;
             }
@@ -427,6 +429,7 @@ impl Interpreter<'_> {
             }
             self.out.push_back(call);
         }
+        self.comp.queue = queue;
     }
 
     /// LinuxCNC's `latheorigin_x` / `latheorigin_z`: under G18 a lathe tool (orientation
@@ -472,13 +475,10 @@ impl Interpreter<'_> {
                     let r2 = (x - c.0).hypot(y - c.1);
                     let l2 = find_turn((ex, ey), c, a.rotation, (x, y));
                     if (r1 - r2).abs() > 0.01 {
-                        return Err(cc(col, "BUG: cutter compensation has generated an invalid arc"));
+                        return Err(cc(col, CompError::InvalidArc));
                     }
                     if p.sweep != 0.0 && ep.is_some() && l2.abs() > p.sweep.abs() + sweep_slack {
-                        return Err(cc(
-                            col,
-                            "Arc move in concave corner cannot be reached by the tool without gouging",
-                        ));
+                        return Err(cc(col, CompError::ArcGouge));
                     }
                     a.first_end = x;
                     a.second_end = y;
@@ -489,9 +489,9 @@ impl Interpreter<'_> {
                         return Err(cc(
                             col,
                             if matches!(p.call.canon, Canon::StraightTraverse { .. }) {
-                                "Straight traverse in concave corner cannot be reached by the tool without gouging"
+                                CompError::StraightTraverseGouge
                             } else {
-                                "Straight feed in concave corner cannot be reached by the tool without gouging"
+                                CompError::StraightFeedGouge
                             },
                         ));
                     }
@@ -534,10 +534,7 @@ impl Interpreter<'_> {
         };
         if self.comp.first_move {
             if (px - cx).hypot(py - cy) <= r {
-                return Err(cc(
-                    col,
-                    "Length of cutter compensation entry move is not greater than the tool radius",
-                ));
+                return Err(cc(col, CompError::EntryTooShort));
             }
             let alpha = (py - cy).atan2(px - cx) + if left { FRAC_PI_2 } else { -FRAC_PI_2 };
             let (ex, ey) = (px + r * alpha.cos(), py + r * alpha.sin());
@@ -599,7 +596,7 @@ impl Interpreter<'_> {
             } else {
                 let half = (beta + PI) / 2.0;
                 if half == 0.0 {
-                    return Err(cc(col, "Zero degree inside corner is invalid for cutter compensation"));
+                    return Err(cc(col, CompError::ZeroDegreeCorner));
                 }
                 let retreat = r / half.tan();
                 let (qx, qy) = (cx + retreat * (theta + gamma).cos(), cy + retreat * (theta + gamma).sin());
@@ -626,7 +623,7 @@ impl Interpreter<'_> {
         let inside = tool_inside_arc(side, prev.rotation);
         let oldrad_uncomp = if inside { oldrad + r } else { oldrad - r };
         let d = oldrad_uncomp * (theta - phi).cos();
-        let msg = "Arc to straight motion makes a corner the compensated tool can't fit in without gouging";
+        let msg = CompError::ArcToStraightGouge;
         let angle = if inside {
             let l = (d - r) / oldrad;
             if !(-1.0..=1.0).contains(&l) {
@@ -669,14 +666,11 @@ impl Interpreter<'_> {
         let axes = self.plane.axes();
         let (ex, ey, ez) = plane3(axes, &end);
         if (ex - cx).hypot(ey - cy) <= r {
-            return Err(cc(
-                col,
-                "Radius of cutter compensation entry arc is not greater than the tool radius",
-            ));
+            return Err(cc(col, CompError::EntryArcTooShort));
         }
         let inside = tool_inside_arc(side, turn);
         if inside && (centre.0 - cx).hypot(centre.1 - cy) <= r {
-            return Err(cc(col, "Tool radius not less than arc radius with comp"));
+            return Err(cc(col, CompError::ArcTooSmall));
         }
         let gamma =
             if inside { (centre.1 - ey).atan2(centre.0 - ex) } else { (ey - centre.1).atan2(ex - centre.0) };
@@ -687,7 +681,7 @@ impl Interpreter<'_> {
         let ab_ang = (centre.1 - ny).atan2(centre.0 - nx);
         let a_ang = (cy - ny).atan2(cx - nx) - ab_ang;
         if a_ang.cos().abs() < TOLERANCE_EQUAL {
-            return Err(cc(col, "Tool radius not less than arc radius with comp"));
+            return Err(cc(col, CompError::ArcTooSmall));
         }
         let c_len = b_len / a_ang.cos();
         let (ncx, ncy) = (nx + c_len * ab_ang.cos(), ny + c_len * ab_ang.sin());
@@ -754,7 +748,7 @@ impl Interpreter<'_> {
         let inside = tool_inside_arc(side, turn);
         let gamma = if (left && !cw) || (!left && cw) {
             if arc_radius <= r {
-                return Err(cc(col, "Tool radius not less than arc radius with comp"));
+                return Err(cc(col, CompError::ArcTooSmall));
             }
             (ccy - ey).atan2(ccx - ex)
         } else {
@@ -781,17 +775,11 @@ impl Interpreter<'_> {
                 let newrad = if inside { arc_radius - r } else { arc_radius + r };
                 let arc_cc = (prev.second_centre - ccy).hypot(prev.first_centre - ccx);
                 if oldrad == 0.0 || arc_cc == 0.0 {
-                    return Err(cc(
-                        col,
-                        "Arc to arc motion is invalid because the arcs have the same center",
-                    ));
+                    return Err(cc(col, CompError::ArcToArcSameCentre));
                 }
                 let a = (oldrad * oldrad + arc_cc * arc_cc - newrad * newrad) / (2.0 * oldrad * arc_cc);
                 if !(-1.0..=1.0).contains(&a) {
-                    return Err(cc(
-                        col,
-                        "Arc to arc motion makes a corner the compensated tool can't fit in without gouging",
-                    ));
+                    return Err(cc(col, CompError::ArcToArcGouge));
                 }
                 let pullback = a.acos();
                 let cc_dir = (ccy - prev.second_centre).atan2(ccx - prev.first_centre);
@@ -803,7 +791,7 @@ impl Interpreter<'_> {
                 (prev.first_centre + oldrad * dir.cos(), prev.second_centre + oldrad * dir.sin())
             } else {
                 let cyv = arc_radius * (beta - FRAC_PI_2).sin();
-                let msg = "Arc move in concave corner cannot be reached by the tool without gouging";
+                let msg = CompError::ArcGouge;
                 let (dist, angle) = if inside {
                     let dist = arc_radius - r;
                     let l = (cyv + r) / dist;
@@ -942,6 +930,21 @@ mod tests {
             })
             .collect();
         assert_eq!(texts, ["400.000000", "410.000000", "420.000000", "400.000000", "420.000000"]);
+    }
+
+    #[test]
+    fn errors_are_typed() {
+        use crate::error::{CompError, ErrorKind};
+        for (src, line, kind) in [
+            ("G21 F100\nG0 X0 Y0\nG41.1 D10 G1 X1\nG1 Y0.1\nG1 X20\nM2\n", 3, CompError::EntryTooShort),
+            ("G21 F100\nG0 X0 Y0\nG41.1 D10 G1 X20\nG1 Y1\nG1 X40\nM2\n", 5, CompError::StraightFeedGouge),
+            ("G21 F100\nG0 X0 Y0\nG41.1 D2 G1 X20\nG41.1 D2 G1 X40\nM2\n", 4, CompError::AlreadyOn),
+            ("G21 F100\nG0 X0 Y0\nG41.1 D2 G1 X20\nG40\nG2 X30 Y0 R5\nM2\n", 5, CompError::ArcAfterExit),
+            ("G21 F100\nG0 X0 Y0\nG41.1 D2 G1 X20\nG81 X5 Y5 Z-1 R1\nM2\n", 4, CompError::CannedCycle),
+        ] {
+            let e = interpret(src).unwrap_err();
+            assert_eq!((e.line, e.kind), (line, ErrorKind::CutterComp(kind)), "{src}");
+        }
     }
 
     #[test]

@@ -3,17 +3,21 @@
 //! distance modes, G10/G92, motion, stops and the program-end reset.
 
 use super::cycles::Cycle;
+use super::io::{IoCodes, MCodeDialect};
 use super::motion::Motion;
+use super::rotation::{self, rotate, rotation_param};
 use super::{origin_param, Interpreter};
 use crate::block::{g, Block};
 use crate::canon::{Canon, MSync, Plane, Pose, Units};
-use crate::error::{ErrorKind, KResult};
+use crate::error::{CompError, ErrorKind, KResult};
 
 impl Interpreter<'_> {
     /// Executes the block's words (the line's assignments, comment and EX writes are done).
-    pub(super) fn execute_block(&mut self, b: &Block) -> KResult<()> {
+    pub(super) fn execute_block(&mut self, b: &mut Block) -> KResult<()> {
+        let io = self.take_io_codes(b)?;
+        let b = &*b;
         let gcode = |grp: usize| b.g.get(grp).copied().flatten();
-        self.check_words(b)?;
+        self.check_words(b, io)?;
         // Axis words belong to a code other than motion (G10, G28/G30, G43.1, G52, G92).
         let mut axes_used = false;
         if let Some((code, _)) = gcode(5) {
@@ -37,7 +41,13 @@ impl Interpreter<'_> {
             self.rpm = s;
             self.emit(Canon::SetSpindleSpeed { rpm: s });
         }
-        self.tool_words(b)?;
+        // LinuxCNC's order: T, M62-M68, M6 or M61.
+        self.select_tool(b)?;
+        self.io_words(b, io)?;
+        self.change_tool(b)?;
+        if io.set_tool {
+            self.set_current_tool(b)?;
+        }
         match b.m_spindle {
             Some(3) => {
                 self.spindle = 1;
@@ -88,7 +98,7 @@ impl Interpreter<'_> {
                 _ => Plane::Yz,
             };
             if self.comp.on() && plane != self.plane {
-                return Err(comp_err(col, "Cannot change planes with cutter radius compensation on"));
+                return Err(comp_err(col, CompError::PlaneChange));
             }
             self.plane = plane;
             self.emit(Canon::SelectPlane { plane: self.plane });
@@ -111,10 +121,7 @@ impl Interpreter<'_> {
         }
         if let Some((code, col)) = gcode(12) {
             if self.comp.on() {
-                return Err(comp_err(
-                    col,
-                    "Cannot change coordinate systems with cutter radius compensation on",
-                ));
+                return Err(comp_err(col, CompError::CoordSystemChange));
             }
             let k = match code {
                 540 => 0,
@@ -131,12 +138,12 @@ impl Interpreter<'_> {
             if k != self.coord {
                 self.select_coord(k);
                 self.emit(Canon::SetG92Offset { offset: self.g92 });
-                self.emit(Canon::SetXyRotation { degrees: 0.0 });
+                self.emit(Canon::SetXyRotation { degrees: self.rot });
             }
         }
         if let Some((code, col)) = gcode(13) {
             if self.comp.on() {
-                return Err(comp_err(col, "Cannot change control mode with cutter radius compensation on"));
+                return Err(comp_err(col, CompError::ControlModeChange));
             }
             self.set_path_control(code, b);
         }
@@ -155,7 +162,7 @@ impl Interpreter<'_> {
         }
         if let Some((code, col)) = gcode(10) {
             if self.comp.on() {
-                return Err(comp_err(col, "Cannot change retract mode with cutter radius compensation on"));
+                return Err(comp_err(col, CompError::RetractModeChange));
             }
             self.cycles.retract_to_initial = code == g::G98;
         }
@@ -163,13 +170,9 @@ impl Interpreter<'_> {
         if let Some((code, col)) = nonmodal {
             if self.comp.on() {
                 let msg = match code {
-                    g::G92 | g::G92_1 | g::G92_2 | g::G92_3 | g::G52 => {
-                        Some("Cannot change axis offsets with cutter radius comp")
-                    }
-                    g::G28 | g::G30 => Some("Cannot use g28 or g30 with cutter radius comp"),
-                    g::G28_1 | g::G30_1 => {
-                        Some("Cannot set reference point with cutter compensation in effect")
-                    }
+                    g::G92 | g::G92_1 | g::G92_2 | g::G92_3 | g::G52 => Some(CompError::AxisOffsetChange),
+                    g::G28 | g::G30 => Some(CompError::ReferenceMove),
+                    g::G28_1 | g::G30_1 => Some(CompError::ReferenceSet),
                     _ => None,
                 };
                 if let Some(msg) = msg {
@@ -250,7 +253,7 @@ impl Interpreter<'_> {
                 let mcol = explicit_motion.map_or(b.first_col, |(_, c)| c);
                 if let Motion::Cycle(c) = m {
                     if self.comp.on() {
-                        return Err(comp_err(mcol, "Cannot use canned cycles with cutter compensation on"));
+                        return Err(comp_err(mcol, CompError::CannedCycle));
                     }
                     if let Some((_, col)) = g53 {
                         return Err((col, ErrorKind::G53WithoutStraight));
@@ -263,9 +266,14 @@ impl Interpreter<'_> {
                 return Err((col, ErrorKind::G53WithoutStraight));
             }
         }
-        if b.m_stop.is_some() {
+        if b.m_stop.is_some() || io.pallet {
             // LinuxCNC sends the held-back compensated move before a stop or the end.
             self.comp_flush_for_stop(b.first_col)?;
+        }
+        if io.pallet {
+            // M60: the pallets are exchanged, then the program stops.
+            self.emit(Canon::PalletShuttle);
+            self.emit(Canon::ProgramStop);
         }
         match b.m_stop {
             Some(0) => self.emit(Canon::ProgramStop),
@@ -278,7 +286,7 @@ impl Interpreter<'_> {
 
     /// LinuxCNC's check that every P, Q, R, L and H word has a code in the block that uses
     /// it (the motion: the block's own, or the modal one when the block has axis words).
-    fn check_words(&self, b: &Block) -> KResult<()> {
+    fn check_words(&self, b: &Block, io: IoCodes) -> KResult<()> {
         let code = |grp: usize| b.g.get(grp).copied().flatten().map(|(c, _)| c);
         let motion = code(1).or_else(|| {
             if !b.has_axes() {
@@ -309,11 +317,12 @@ impl Interpreter<'_> {
                 || matches!(motion, Some(g::G82 | g::G89))
                 || matches!(modal0, Some(g::G4 | g::G10))
                 || path == Some(g::G64)
-                || user_m;
+                || user_m
+                || io.uses_p();
             missing(ok, 'P', "G2, G3, G4, G10, G64, G82, G89 or M-function")?;
         }
         if b.q.is_some() {
-            let ok = matches!(motion, Some(g::G73 | g::G83)) || path == Some(g::G64) || user_m;
+            let ok = matches!(motion, Some(g::G73 | g::G83)) || path == Some(g::G64) || user_m || io.uses_q();
             missing(ok, 'Q', "G64, G73, G83 or M-function")?;
         }
         if b.r.is_some() {
@@ -321,7 +330,17 @@ impl Interpreter<'_> {
         }
         if b.l.is_some() {
             let comp_l = matches!(code(7), Some(g::G41_1 | g::G42_1));
-            missing(cycle || comp_l || modal0 == Some(g::G10), 'L', "G10 or canned cycle")?;
+            missing(
+                cycle || comp_l || modal0 == Some(g::G10) || io.uses_l(),
+                'L',
+                "G10, canned cycle or M66",
+            )?;
+        }
+        if b.e.is_some() {
+            if self.config.m_codes == MCodeDialect::Seed {
+                return Err((b.e_col, ErrorKind::UnsupportedLetter('E')));
+            }
+            missing(io.uses_e(), 'E', "M66, M67 or M68")?;
         }
         if b.h.is_some() {
             missing(tool == Some(g::G43), 'H', "G43")?;
@@ -348,11 +367,13 @@ impl Interpreter<'_> {
         Ok(())
     }
 
+    /// G10 L2 (origin and rotation of a system) and G10 L20 (origin such that the
+    /// current point has the given coordinates), with LinuxCNC's `convert_setup`.
     fn g10(&mut self, b: &Block, col: u32) -> KResult<()> {
         let l = b.l.ok_or((col, ErrorKind::BadG10("L word missing")))?;
         let p = b.p.ok_or((col, ErrorKind::BadG10("P word missing")))?;
-        if b.r.is_some() {
-            return Err((col, ErrorKind::BadG10("R (rotation) is not supported")));
+        if b.ijk.iter().take(2).any(Option::is_some) {
+            return Err((col, ErrorKind::BadG10("I J words not allowed with G10 L2")));
         }
         let pi = p.round();
         if (p - pi).abs() > 0.0001 || !(0.0..=9.0).contains(&pi) {
@@ -361,39 +382,63 @@ impl Interpreter<'_> {
         // 0..=9 checked above; P0 = the active system.
         let k = if pi == 0.0 { self.coord } else { pi as usize - 1 };
         if k == self.coord && self.comp.on() {
-            return Err(comp_err(
-                col,
-                "Cannot change the active coordinate system with cutter radius compensation on",
-            ));
+            return Err(comp_err(col, CompError::ActiveSystemChange));
         }
-        let mut new = self.origins.get(k).copied().unwrap_or([0.0; 6]);
-        let cur = self.origin();
         let l20 = match l.round() as i64 {
             2 => false,
             20 => true,
             _ => return Err((col, ErrorKind::BadG10("only L2 and L20 are supported"))),
         };
-        for a in 0..6 {
-            if let (Some(v), Some(slot)) = (b.axes.get(a).copied().flatten(), new.get_mut(a)) {
-                *slot = if l20 {
-                    self.pos.get(a).copied().unwrap_or(0.0) + cur.get(a).copied().unwrap_or(0.0) - v
-                } else {
-                    v
-                };
+        let mut new = self.origins.get(k).copied().unwrap_or([0.0; 6]);
+        let cur = self.current_in_system(k);
+        let r = match b.r {
+            Some(_) if l20 => return Err((col, ErrorKind::BadG10("R not allowed in G10 L20"))),
+            Some(r) => {
+                self.params.set(rotation_param(k), r);
+                r
+            }
+            None => self.rotation_of(k),
+        };
+        let word = |a: usize| b.axes.get(a).copied().flatten();
+        let at = |p: &Pose, a: usize| p.get(a).copied().unwrap_or(0.0);
+        if l20 {
+            // X and Y in the target system's rotated frame (LinuxCNC writes both).
+            let (ox, oy) = rotate(at(&cur, 0), at(&cur, 1), r);
+            let (tx, ty) = rotate(word(0).unwrap_or(at(&cur, 0)), word(1).unwrap_or(at(&cur, 1)), r);
+            let xy = (ox + at(&new, 0) - tx, oy + at(&new, 1) - ty);
+            rotation::set_xy(&mut new, xy);
+        }
+        let first = if l20 { 2 } else { 0 };
+        for a in first..6 {
+            if let (Some(v), Some(slot)) = (word(a), new.get_mut(a)) {
+                *slot = if l20 { at(&cur, a) + *slot - v } else { v };
             }
         }
-        self.set_origin(k, new);
+        if k == self.coord {
+            self.rebase_current(&new, r);
+        }
+        if let Some(slot) = self.origins.get_mut(k) {
+            *slot = new;
+        }
+        for (a, v) in new.iter().enumerate() {
+            self.params.set(origin_param(k) + a, *v);
+        }
         if k == self.coord {
             self.emit(Canon::SetG5xOffset { index: u8::try_from(k + 1).unwrap_or(1), offset: new });
-            self.emit(Canon::SetXyRotation { degrees: 0.0 });
+            self.emit(Canon::SetXyRotation { degrees: r });
         }
         Ok(())
     }
 
     fn program_end(&mut self, pallet: bool) {
         self.comp.side = super::cutter_comp::Side::Off;
-        self.select_coord(0);
-        self.emit(Canon::SetXyRotation { degrees: 0.0 });
+        // LinuxCNC: back to G54 (the current point moved without the G92 offset).
+        let g54 = self.origins.first().copied().unwrap_or([0.0; 6]);
+        self.rebase_current(&g54, self.rotation_of(0));
+        self.coord = 0;
+        self.params.set(5220, 1.0);
+        self.emit(Canon::SetG5xOffset { index: 1, offset: g54 });
+        self.emit(Canon::SetXyRotation { degrees: self.rot });
         if self.plane != Plane::Xy {
             self.plane = Plane::Xy;
             self.emit(Canon::SelectPlane { plane: Plane::Xy });
@@ -457,32 +502,13 @@ impl Interpreter<'_> {
         }
     }
 
-    fn set_origin(&mut self, k: usize, new: Pose) {
-        if k == self.coord {
-            let old = self.origin();
-            for a in 0..6 {
-                if let (Some(p), Some(o), Some(n)) = (self.pos.get_mut(a), old.get(a), new.get(a)) {
-                    *p += o - n;
-                }
-            }
-        }
-        if let Some(slot) = self.origins.get_mut(k) {
-            *slot = new;
-        }
-        for (a, v) in new.iter().enumerate() {
-            self.params.set(origin_param(k) + a, *v);
-        }
-    }
-
+    /// G54..G59.3: the current point moves into system `k` (LinuxCNC's
+    /// `find_current_in_system`), whose rotation becomes active.
     fn select_coord(&mut self, k: usize) {
-        let old = self.origin();
+        self.pos = self.current_in_system(k);
         self.coord = k;
+        self.rot = self.rotation_of(k);
         let new = self.origin();
-        for a in 0..6 {
-            if let (Some(p), Some(o), Some(n)) = (self.pos.get_mut(a), old.get(a), new.get(a)) {
-                *p += o - n;
-            }
-        }
         self.params.set(5220, (k + 1) as f64);
         self.emit(Canon::SetG5xOffset { index: u8::try_from(k + 1).unwrap_or(1), offset: new });
     }
@@ -510,8 +536,8 @@ impl Interpreter<'_> {
 }
 
 /// A cutter compensation error at `col`.
-fn comp_err(col: u32, msg: &'static str) -> (u32, ErrorKind) {
-    (col, ErrorKind::CutterComp(msg))
+fn comp_err(col: u32, e: CompError) -> (u32, ErrorKind) {
+    (col, ErrorKind::CutterComp(e))
 }
 
 /// What a G92-family code does with the saved offsets #5211-#5216 and their flag #5210.

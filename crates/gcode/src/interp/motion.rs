@@ -3,11 +3,11 @@
 
 use super::cycles::Cycle;
 use super::feed::FeedMode;
-use super::Interpreter;
+use super::{rotation, Interpreter};
 use crate::arc;
 use crate::block::Block;
 use crate::canon::{ArcFeed, Canon, MachineMove, Plane, Pose};
-use crate::error::{ErrorKind, KResult};
+use crate::error::{CompError, ErrorKind, KResult};
 
 /// Modal motion.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -25,11 +25,14 @@ impl Interpreter<'_> {
     pub(super) fn to_machine(&self, p: &Pose) -> Pose {
         let f = self.units.mm_per_unit();
         let o = self.origins.get(self.coord).copied().unwrap_or([0.0; 6]);
+        // The G92 offset applies in the rotated frame, then the rotation, then the origin.
+        let mut shifted: Pose = std::array::from_fn(|k| {
+            p.get(k).copied().unwrap_or(0.0) + self.g92.get(k).copied().unwrap_or(0.0)
+        });
+        rotation::turn(&mut shifted, self.rot);
         let mut m = [0.0; 6];
         for (k, slot) in m.iter_mut().enumerate() {
-            let v = p.get(k).copied().unwrap_or(0.0)
-                + o.get(k).copied().unwrap_or(0.0)
-                + self.g92.get(k).copied().unwrap_or(0.0);
+            let v = shifted.get(k).copied().unwrap_or(0.0) + o.get(k).copied().unwrap_or(0.0);
             // Plus the tool length offset (already in machine units).
             let tool = self.tool.offset_mm.get(k).copied().unwrap_or(0.0);
             *slot = if k < 3 { v * f } else { v } + tool;
@@ -79,6 +82,19 @@ impl Interpreter<'_> {
                 *slot + v
             };
         }
+        if g53.is_some() {
+            // LinuxCNC's `find_ends`: X and Y through the active rotation (an axis not
+            // named keeps the current point's machine position).
+            let (cx, cy) = self.unrotated_xy(&start);
+            let word = |k: usize| b.axes.get(k).copied().flatten();
+            let x = word(0)
+                .map_or(cx, |v| v - origin.first().copied().unwrap_or(0.0) - self.tool_offset_program(0));
+            let y = word(1)
+                .map_or(cy, |v| v - origin.get(1).copied().unwrap_or(0.0) - self.tool_offset_program(1));
+            let (x, y) = rotation::rotate(x, y, -self.rot);
+            let g92 = |k: usize| self.g92.get(k).copied().unwrap_or(0.0);
+            rotation::set_xy(&mut end, (x - g92(0), y - g92(1)));
+        }
         if b.has_polar() {
             // LinuxCNC: X and Y from the polar words, about the origin (G90) or from the
             // current point's own radius and angle (G91).
@@ -99,19 +115,14 @@ impl Interpreter<'_> {
         }
         if matches!(m, Motion::Cw | Motion::Ccw) {
             if self.comp.arc_not_allowed {
-                return Err((
-                    mcol,
-                    ErrorKind::CutterComp(
-                        "The move just after exiting cutter compensation mode must be straight, not an arc",
-                    ),
-                ));
+                return Err((mcol, ErrorKind::CutterComp(CompError::ArcAfterExit)));
             }
         } else {
             self.comp.arc_not_allowed = false;
         }
         if self.comp.active() {
             if let Some(col) = g53 {
-                return Err((col, ErrorKind::CutterComp("Cannot use g53 with cutter radius comp")));
+                return Err((col, ErrorKind::CutterComp(CompError::MachineCoordinates)));
             }
             if matches!(m, Motion::Rapid | Motion::Feed) {
                 self.comp_straight(m == Motion::Rapid, b, end, mcol)?;

@@ -6,7 +6,7 @@
 //! The stored points are in the machine's units, millimetres and degrees.
 
 use super::modal::G92Params;
-use super::Interpreter;
+use super::{rotation, Interpreter};
 use crate::block::{g, Block};
 use crate::canon::{Canon, MachineMove, Pose};
 
@@ -37,6 +37,14 @@ impl Interpreter<'_> {
                 - self.g92.get(k).copied().unwrap_or(0.0)
                 - self.tool_offset_program(k);
         }
+        // X and Y of the reference through the active rotation (LinuxCNC's
+        // `find_relative`); an axis not named keeps the intermediate point's.
+        let reference = |k: usize| self.params.get(base + k) / self.user_units_per_program_unit(k);
+        let (rx, ry) = self.relative_xy(reference(0), reference(1));
+        let named = |k: usize| !b.has_axes() || b.axes.get(k).copied().flatten().is_some();
+        let x = if named(0) { rx } else { via.first().copied().unwrap_or(0.0) };
+        let y = if named(1) { ry } else { via.get(1).copied().unwrap_or(0.0) };
+        rotation::set_xy(&mut end, (x, y));
         self.traverse_to(end);
     }
 
@@ -50,6 +58,11 @@ impl Interpreter<'_> {
                 + self.g92.get(k).copied().unwrap_or(0.0)
                 + self.tool_offset_program(k);
             self.params.set(base + k, abs * self.user_units_per_program_unit(k));
+        }
+        // X and Y through the active rotation (LinuxCNC's `convert_savehome`).
+        let (x, y) = self.absolute_xy(&self.pos);
+        for (k, v) in [(0, x), (1, y)] {
+            self.params.set(base + k, v * self.user_units_per_program_unit(k));
         }
     }
 

@@ -44,13 +44,14 @@ impl Interpreter<'_> {
         // program units.
         let origin = self.origins.get(self.coord).copied().unwrap_or_default();
         let mm = self.units.mm_per_unit();
-        let abs: [f64; 6] = std::array::from_fn(|k| {
+        let mut abs: [f64; 6] = std::array::from_fn(|k| {
             let tool = self.tool.offset_mm.get(k).copied().unwrap_or(0.0);
             pos.get(k).copied().unwrap_or(0.0)
                 + origin.get(k).copied().unwrap_or(0.0)
                 + self.g92.get(k).copied().unwrap_or(0.0)
                 + if k < 3 { tool / mm } else { tool }
         });
+        super::rotation::set_xy(&mut abs, self.absolute_xy(&pos));
         let motion_mode = match self.motion {
             None => 800.0,
             Some(Motion::Rapid) => 0.0,

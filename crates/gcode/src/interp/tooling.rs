@@ -8,7 +8,7 @@
 use super::Interpreter;
 use crate::block::{g, Block};
 use crate::canon::{Canon, Pose};
-use crate::error::{ErrorKind, KResult};
+use crate::error::{CompError, ErrorKind, KResult};
 
 /// The first of the parameters of the tool in the spindle (#5400 = its number).
 const TOOL_PARAMS: usize = 5400;
@@ -37,13 +37,10 @@ impl Interpreter<'_> {
             .ok_or((col, ErrorKind::ToolNotFound(number)))
     }
 
-    /// The block's T word and M6, in LinuxCNC's order (select, then change).
-    pub(super) fn tool_words(&mut self, b: &Block) -> KResult<()> {
+    /// The block's T word (`SELECT_TOOL`).
+    pub(super) fn select_tool(&mut self, b: &Block) -> KResult<()> {
         if b.m_tool.is_some() && self.comp.on() {
-            return Err((
-                b.first_col,
-                ErrorKind::CutterComp("Cannot change tools with cutter radius compensation on"),
-            ));
+            return Err((b.first_col, ErrorKind::CutterComp(CompError::ToolChange)));
         }
         if let Some(t) = b.t {
             let number = tool_number(t, b.first_col)?;
@@ -51,6 +48,11 @@ impl Interpreter<'_> {
             self.tool.selected = (number, index);
             self.emit(Canon::SelectTool { tool: number });
         }
+        Ok(())
+    }
+
+    /// The block's M6: the selected tool into the spindle.
+    pub(super) fn change_tool(&mut self, b: &Block) -> KResult<()> {
         if b.m_tool.is_some() {
             // LinuxCNC 2.9: the spindle stops for the change. Changing to the empty place
             // (T0) leaves the spindle's tool entry, and its number, as they were.
@@ -69,7 +71,7 @@ impl Interpreter<'_> {
 
     /// #5400-#5413: the spindle's tool number, offsets X..W, diameter, angles, orientation
     /// (the machine's units, as the table holds them).
-    fn publish_tool_params(&mut self) {
+    pub(super) fn publish_tool_params(&mut self) {
         let (number, index) = self.tool.current;
         let tool = index.checked_sub(1).and_then(|i| self.config.tools.get(i));
         let mut values: Vec<f64> = Vec::with_capacity(14);
@@ -88,10 +90,7 @@ impl Interpreter<'_> {
     /// G43 (H), G43.1 or G49.
     pub(super) fn tool_length_offset(&mut self, code: u16, b: &Block, col: u32) -> KResult<()> {
         if self.comp.on() {
-            return Err((
-                col,
-                ErrorKind::CutterComp("Cannot change tool offset with cutter radius compensation on"),
-            ));
+            return Err((col, ErrorKind::CutterComp(CompError::ToolOffsetChange)));
         }
         let mm = self.units.mm_per_unit();
         let new_mm: Pose = match code {
@@ -116,11 +115,15 @@ impl Interpreter<'_> {
             _ => [0.0; 6],
         };
         let old = self.tool.offset_mm;
-        for k in 0..6 {
+        let mut delta: Pose = std::array::from_fn(|k| {
             let f = if k < 3 { mm } else { 1.0 };
-            if let (Some(p), Some(o), Some(n)) = (self.pos.get_mut(k), old.get(k), new_mm.get(k)) {
-                *p += (o - n) / f;
-            }
+            (old.get(k).copied().unwrap_or(0.0) - new_mm.get(k).copied().unwrap_or(0.0)) / f
+        });
+        // The X/Y change is in the machine's frame: into the rotated program frame.
+        let (dx, dy) = (delta.first().copied().unwrap_or(0.0), delta.get(1).copied().unwrap_or(0.0));
+        super::rotation::set_xy(&mut delta, super::rotation::rotate(dx, dy, -self.rot));
+        for (p, d) in self.pos.iter_mut().zip(delta) {
+            *p += d;
         }
         self.tool.offset_mm = new_mm;
         self.tool.active = code != g::G49;

@@ -16,6 +16,7 @@ degrees. Output lines:
   arc first_end second_end first_centre second_centre rotation axis_end a b c
   g5x index x y z a b c
   g92 x y z a b c
+  rot degrees        (SET_XY_ROTATION: the active system's rotation about Z)
   plane n            (1 = XY, 2 = YZ, 3 = XZ)
   dwell seconds
   result code line   (line is 1-based; code > gcode.MIN_ERROR is an error)
@@ -78,6 +79,9 @@ class Canon:
 
     def set_g92_offset(self, x, y, z, a, b, c, u=0, v=0, w=0):
         self.out("g92", lengths([x, y, z]) + [a, b, c])
+
+    def set_xy_rotation(self, theta):
+        self.out("rot", [theta])
 
     def set_plane(self, plane):
         print("plane", plane)
