@@ -114,7 +114,7 @@ fn answer_bytes() -> Vec<u8> {
 fn main() {
     // Scheduling as the binary's `--realtime` sets it: MOTUS_REALTIME (auto, nice, off).
     if let Some(obtained) = motus_realtime::set_policy_from_env().unwrap() {
-        println!("real-time: {obtained}; {}", motus_realtime::wake_latency::held());
+        println!("real-time: {obtained}; {}", motus_realtime::wake_latency::hold_if_fifo());
     }
     let filter = std::env::args().skip(1).find(|a| !a.starts_with('-')).unwrap_or_default();
     let seconds = std::env::var("MOTUS_NFV2_BENCH_SECONDS").ok().and_then(|s| s.parse().ok()).unwrap_or(5);

@@ -12,8 +12,9 @@
 //! * the web server's threads call [`demote_current_thread_for_web`];
 //! * transparent huge pages are off for the process (a 2 MiB page zeroed on first touch
 //!   stalls the thread that touched it for milliseconds);
-//! * with `SCHED_FIFO`, idle CPUs are kept out of idle states that are slow to wake up, for
-//!   as long as the process runs ([`mod@wake_latency`]).
+//! * a process that runs a POWERLINK node (`motus epl cn`, `motus epl mn`) or a real-time
+//!   benchmark keeps idle CPUs out of idle states that are slow to wake up, for as long as
+//!   it runs, when it obtained `SCHED_FIFO` ([`wake_latency::hold_if_fifo`]).
 //!
 //! What each call does depends on what the process obtained ([`Obtained`]):
 //!
@@ -207,11 +208,6 @@ pub fn set_policy(policy: RealtimePolicy) -> Obtained {
         let obtained = decide(policy);
         if obtained != Obtained::Off {
             disable_huge_pages();
-        }
-        match wake_latency::hold(matches!(obtained, Obtained::Fifo(_))) {
-            wake_latency::WakeLatency::Off => {}
-            held @ wake_latency::WakeLatency::Held(_) => tracing::info!("real-time: {held}"),
-            failed @ wake_latency::WakeLatency::Failed(_) => tracing::warn!("real-time: {failed}"),
         }
         obtained
     })

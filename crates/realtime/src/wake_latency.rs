@@ -14,7 +14,8 @@
 //! write the bound in microseconds (a native-endian 32-bit integer) to the device and keep
 //! it open; the bound holds for the whole machine until the file is closed (here: when the
 //! process ends). Only root may open the device (mode 0600), so the request is made where
-//! the process obtained `SCHED_FIFO` ([`crate::Obtained::Fifo`]).
+//! the process obtained `SCHED_FIFO` ([`crate::Obtained::Fifo`]), by the programs that run a
+//! POWERLINK node ([`hold_if_fifo`]).
 //!
 //! [`WAKE_LATENCY_ENV`] sets another bound (`MOTUS_WAKE_LATENCY_US=20` lets the CPUs use
 //! shallow idle states on hardware whose states report honest exit latencies) or none
@@ -102,6 +103,24 @@ pub fn hold(wanted: bool) -> WakeLatency {
             }
         })
         .clone()
+}
+
+/// [`hold`] when the process obtained `SCHED_FIFO` ([`crate::set_policy`] first), with the
+/// outcome logged once. Called by the programs that run a POWERLINK node and by the
+/// real-time benchmarks; not by the station (`motus serve`/`demo`): under web load on the 2-core development VM, one juggler
+/// trip was seen with it in CI and two in a loaded local run, none without
+/// (`docs/decisions.md`).
+pub fn hold_if_fifo() -> WakeLatency {
+    let first = OUTCOME.get().is_none();
+    let outcome = hold(matches!(crate::obtained(), crate::Obtained::Fifo(_)));
+    if first {
+        match &outcome {
+            WakeLatency::Off => {}
+            WakeLatency::Held(_) => tracing::info!("real-time: {outcome}"),
+            WakeLatency::Failed(_) => tracing::warn!("real-time: {outcome}"),
+        }
+    }
+    outcome
 }
 
 /// What [`hold`] obtained ([`WakeLatency::Off`] before it is called).

@@ -143,7 +143,7 @@ fn analyse(sends: &[Instant], replies: &[Received]) -> Figures {
 fn main() {
     // Scheduling as the binary's `--realtime` sets it: MOTUS_REALTIME (auto, nice, off).
     if let Some(obtained) = motus_realtime::set_policy_from_env().unwrap() {
-        println!("real-time: {obtained}; {}", motus_realtime::wake_latency::held());
+        println!("real-time: {obtained}; {}", motus_realtime::wake_latency::hold_if_fifo());
     }
     self_check();
     let mut c = Criterion::default().configure_from_args();

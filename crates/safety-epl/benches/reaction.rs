@@ -162,7 +162,7 @@ fn on_veth() {
 fn main() {
     // Scheduling as the binary's `--realtime` sets it: MOTUS_REALTIME (auto, nice, off).
     if let Some(obtained) = motus_realtime::set_policy_from_env().unwrap() {
-        println!("real-time: {obtained}; {}", motus_realtime::wake_latency::held());
+        println!("real-time: {obtained}; {}", motus_realtime::wake_latency::hold_if_fifo());
     }
     let mut c = Criterion::default().configure_from_args();
     cpu_part(&mut c);

@@ -96,7 +96,8 @@ pub fn run(a: EplCnArgs) -> Result<()> {
     };
     let obtained = motus_realtime::set_policy(a.realtime.into());
     let memory = motus_realtime::lock_memory();
-    eprintln!("real-time: {obtained}; {memory}; {}", motus_realtime::wake_latency::held());
+    let wake = motus_realtime::wake_latency::hold_if_fifo();
+    eprintln!("real-time: {obtained}; {memory}; {wake}");
     let link = open_link(&a.interface, false).with_context(|| format!("cannot open {}", a.interface))?;
     let clock = SystemClock::shared();
     let od = match from_file {

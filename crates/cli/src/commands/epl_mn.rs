@@ -128,7 +128,8 @@ fn print_summary(stats: &RuntimeStats, nodes: &[NodeReport]) {
 pub fn run(a: EplMnArgs) -> Result<()> {
     let obtained = motus_realtime::set_policy(a.realtime.into());
     let memory = motus_realtime::lock_memory();
-    eprintln!("real-time: {obtained}; {memory}; {}", motus_realtime::wake_latency::held());
+    let wake = motus_realtime::wake_latency::hold_if_fifo();
+    eprintln!("real-time: {obtained}; {memory}; {wake}");
     let bytes = std::fs::read(&a.cdc).with_context(|| format!("cannot read {}", a.cdc.display()))?;
     let cdc = Cdc::parse(&bytes).with_context(|| format!("{} is not a concise DCF", a.cdc.display()))?;
     let overrides = a.set.iter().map(|s| parse_set(s)).collect::<Result<Vec<_>>>()?;

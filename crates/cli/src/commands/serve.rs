@@ -172,7 +172,7 @@ fn stop_station(machine: Arc<StationMachine>, web: WebHandle, signalled: Instant
 fn set_realtime(policy: crate::cli_station::RealtimeArg) {
     let obtained = motus_realtime::set_policy(policy.into());
     let memory = motus_realtime::lock_memory();
-    eprintln!("real-time: {obtained}; {memory}; {}", motus_realtime::wake_latency::held());
+    eprintln!("real-time: {obtained}; {memory}");
 }
 
 /// `motus serve`.
