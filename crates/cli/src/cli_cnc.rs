@@ -33,6 +33,21 @@ pub struct GcodeFileArgs {
     /// What M60-M68 mean: the seed's M-functions, or LinuxCNC's pallet, tool and I/O codes.
     #[arg(long, value_enum, default_value = "seed")]
     pub dialect: GcodeDialect,
+    /// How canned cycles (G73, G81-G89) reach the machine: LinuxCNC's Z moves, or the
+    /// drilling unit's M60 job per hole. Default: `drilling-technology` for `run` (the
+    /// simulated drilling machine), `motion` for the other commands.
+    #[arg(long, value_enum)]
+    pub cycles: Option<GcodeCycles>,
+}
+
+/// Where canned cycles go (`--cycles`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum GcodeCycles {
+    /// LinuxCNC's moves: rapids and feeds of Z on the path.
+    Motion,
+    /// The seed's drilling technology: per hole X/Y over it, EXW60 (S), EXF61 (F), EXF62
+    /// (-Z, Z0 = the material surface), EXF63/EXB64 (pecks of G83/G73), M60; M6 -> M63.
+    DrillingTechnology,
 }
 
 /// The machine's M-code dialect (`--dialect`).

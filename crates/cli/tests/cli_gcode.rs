@@ -92,6 +92,37 @@ fn plan_reports_limits_held_and_run_drills_the_seed_program() {
 }
 
 #[test]
+fn run_drills_canned_cycles_through_the_drilling_technology() {
+    let dir = tempfile::tempdir().unwrap();
+    let tools = write(dir.path(), "tools.tbl", "T1 P1 Z0 D6 ;6 mm drill\n");
+    let prog = write(
+        dir.path(),
+        "holes.ngc",
+        "G21 G90\nT1 M6\nS1800 F60\nG0 Z5\nG83 X120 Y120 Z-30 R2 Q10\nG80\nM2\n",
+    );
+    let o = motus(&["gcode", "run", &prog, "--tool-table", &tools, "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let holes: Vec<serde_json::Value> =
+        out.lines().filter(|l| l.contains("\"hole\"")).map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(holes.len(), 1, "{out}");
+    assert!((holes[0]["depth_mm"].as_f64().unwrap() - 30.0).abs() < 1e-6, "{out}");
+    assert!((holes[0]["feed_mm_min"].as_f64().unwrap() - 60.0).abs() < 1e-6, "{out}");
+    assert_eq!(holes[0]["entries"].as_u64(), Some(3), "three 10 mm pecks: {out}");
+    // A cycle the unit cannot do is refused when checked for it, naming the line and why.
+    let dwell = write(dir.path(), "dwell.ngc", "S1000 F50\nG0 Z5\nG82 X1 Z-2 R1 P0.5\nM2\n");
+    let o = motus(&["gcode", "check", &dwell, "--cycles", "drilling-technology"]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("dwell.ngc:3:") && err.contains("G82 cannot run on the drilling technology"),
+        "{err}"
+    );
+    // LinuxCNC's motion is the default for check: the same program is valid there.
+    assert!(motus(&["gcode", "check", &dwell]).status.success());
+}
+
+#[test]
 fn run_on_a_cell_moves_its_gantry_axes() {
     let dir = tempfile::tempdir().unwrap();
     let mut cell = String::from("[station]\nname = \"gantry test\"\n");

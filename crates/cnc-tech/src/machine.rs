@@ -155,10 +155,13 @@ pub struct Hole {
     pub depth: f64,
     /// Spindle speed at the deepest point, rpm (negative in reverse).
     pub spindle_rpm: f64,
-    /// Fastest downward Z speed while the tip was in the material, mm/min.
+    /// Fastest downward Z speed while the tip cut new material (deeper than the hole was),
+    /// mm/min: the drilling feed, not a fast return into the hole between pecks.
     pub feed: f64,
     /// Time the tool left the hole, s.
     pub time: f64,
+    /// Times the tool entered the hole (pecking out of the hole enters it again).
+    pub entries: u32,
 }
 
 /// Something that would damage a real machine.
@@ -201,6 +204,7 @@ struct Cut {
     depth: f64,
     rpm: f64,
     feed: f64,
+    entries: u32,
 }
 
 /// The simulated machine.
@@ -386,12 +390,28 @@ impl Machine {
                     if rpm.abs() < 1.0 {
                         self.events.push(MachineEvent::ToolCrash { tool_xy: fb.tool_xy, time: self.time });
                     }
-                    self.cut = Some(Cut {
-                        tool_xy: fb.tool_xy,
-                        gantry_xy: fb.gantry_xy,
-                        depth,
-                        rpm,
-                        feed: down_speed.max(0.0),
+                    // Back into the last hole (a peck): the same hole, entered again.
+                    let again = self.holes.last().is_some_and(|h| {
+                        (h.tool_xy[0] - fb.tool_xy[0]).hypot(h.tool_xy[1] - fb.tool_xy[1]) < 1e-6
+                    });
+                    let reopened = if again { self.holes.pop() } else { None };
+                    self.cut = Some(match reopened {
+                        Some(h) => Cut {
+                            tool_xy: h.tool_xy,
+                            gantry_xy: h.gantry_xy,
+                            depth: h.depth,
+                            rpm: h.spindle_rpm,
+                            feed: h.feed,
+                            entries: h.entries.saturating_add(1),
+                        },
+                        None => Cut {
+                            tool_xy: fb.tool_xy,
+                            gantry_xy: fb.gantry_xy,
+                            depth,
+                            rpm,
+                            feed: down_speed.max(0.0),
+                            entries: 1,
+                        },
                     });
                 }
                 Some(cut) => {
@@ -402,8 +422,8 @@ impl Machine {
                     if depth > cut.depth {
                         cut.depth = depth;
                         cut.rpm = rpm;
+                        cut.feed = cut.feed.max(down_speed);
                     }
-                    cut.feed = cut.feed.max(down_speed);
                 }
             }
         } else if let Some(cut) = self.cut.take() {
@@ -415,6 +435,7 @@ impl Machine {
                 spindle_rpm: cut.rpm,
                 feed: cut.feed,
                 time: self.time,
+                entries: cut.entries,
             });
         }
     }

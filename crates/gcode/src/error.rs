@@ -116,6 +116,15 @@ pub enum ErrorKind {
     /// One canned-cycle block would make more moves than the interpreter allows.
     #[error("Canned cycle block would make more than {0} moves (L repeats x pecks)")]
     CycleTooManyMoves(u64),
+    /// A cycle the seed's drilling technology cannot do (G82, G85, G89).
+    #[error("G{0} cannot run on the drilling technology: its unit drills (G81) and pecks (G73, G83), but cannot dwell at the bottom or feed out of the hole")]
+    CycleNotOnTechnology(u16),
+    /// A drilling-technology cycle without a spindle speed the unit takes (EXW60: 1-32767).
+    #[error("Spindle speed S{0} out of the drilling technology's range (1-32767 rpm) for a canned cycle")]
+    TechnologySpindleSpeed(f64),
+    /// A drilling-technology hole whose bottom is not below the material surface (Z 0).
+    #[error("Hole bottom Z{0} is not below the material surface (Z0) for the drilling technology")]
+    HoleNotBelowSurface(f64),
     /// An assignment to one of LinuxCNC's read-only named parameters (`#<_feed>`, ...).
     #[error("Cannot assign to read-only parameter #<{0}>")]
     ReadOnlyNamedParameter(String),

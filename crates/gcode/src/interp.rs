@@ -11,7 +11,8 @@
 //!
 //! Submodules: `modal` (a block's modal changes), `motion` (moves and arcs),
 //! `cutter_comp` (G40-G42 and its queue of held-back moves), `cycles`
-//! (canned cycles and path control), `feed` (G93-G97), `io` (LinuxCNC's M60-M68),
+//! (canned cycles and path control), `drilling_technology` (canned cycles as the seed's
+//! drilling jobs), `feed` (G93-G97), `io` (LinuxCNC's M60-M68),
 //! `reference` (G28/G30, G52), `rotation` (G10 L2 R), `tooling` (T, M6, G43/G49), `oword`
 //! (O-word control flow), `system_params` (LinuxCNC's read-only parameters and the
 //! `(DEBUG,...)` text). One line at a time is parsed into a reused [`Line`]; only
@@ -19,6 +20,7 @@
 
 mod cutter_comp;
 mod cycles;
+mod drilling_technology;
 mod feed;
 mod io;
 mod modal;
@@ -33,6 +35,7 @@ use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+pub use self::drilling_technology::CycleOutput;
 pub use self::io::MCodeDialect;
 use self::motion::Motion;
 use self::oword::{index_owords, is_oword_line, CallFrame, OLine};
@@ -65,6 +68,9 @@ pub struct InterpreterConfig {
     /// What M60-M68 mean: the seed's M-functions (the default) or LinuxCNC's pallet,
     /// tool and I/O codes (see [`MCodeDialect`]).
     pub m_codes: MCodeDialect,
+    /// How canned cycles reach the machine: LinuxCNC's moves (the default) or the seed's
+    /// drilling technology (see [`CycleOutput`]).
+    pub cycles: CycleOutput,
 }
 
 /// A shared cancellation flag for [`InterpreterConfig::cancel`] (the interpreter only reads
@@ -107,6 +113,7 @@ impl Default for InterpreterConfig {
             tools: Vec::new(),
             cancel: None,
             m_codes: MCodeDialect::Seed,
+            cycles: CycleOutput::Motion,
         }
     }
 }

@@ -71,6 +71,10 @@
 //!   #5399 keeps its value: the input is the machine's). LinuxCNC's checks and messages;
 //!   stricter than it, M67/M68 without Q (LinuxCNC sends -1) and M66 L outside 0..=4
 //!   are errors. The E word exists only in the LinuxCNC dialect.
+//! * Canned cycles per machine ([`InterpreterConfig::cycles`], [`CycleOutput`]): LinuxCNC's
+//!   moves (default), or the seed's drilling technology, where each hole of G81/G73/G83 is
+//!   the unit's M60 job with EXW60/EXF61/EXF62 and a peck increment (EXF63, EXB64), Z 0 is
+//!   the material surface, and M6 activates the drilling technology (M63).
 //! * `(DEBUG,text)` is a message and `(PRINT,text)` a comment, each with the values of the
 //!   parameters named in `text` (six decimals, `######` for one not defined).
 //! * Seed additions: every M number 0..=1023 other than M0-M9, M30 is an
@@ -103,5 +107,7 @@ pub use canon::{
 };
 pub use error::{CompError, ErrorKind, GcodeError};
 pub use format::{format_canon, format_line, write_canon, write_line, Precision};
-pub use interp::{interpret, interpret_with, CancelFlag, Interpreter, InterpreterConfig, MCodeDialect};
+pub use interp::{
+    interpret, interpret_with, CancelFlag, CycleOutput, Interpreter, InterpreterConfig, MCodeDialect,
+};
 pub use tools::{parse_tool_table, Tool, ToolTableError};

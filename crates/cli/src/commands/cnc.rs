@@ -8,7 +8,7 @@ use serde_json::json;
 use std::time::Duration;
 
 use super::gcode::{config, read_program};
-use crate::cli_cnc::{GcodePlanArgs, GcodeRunArgs};
+use crate::cli_cnc::{GcodeCycles, GcodePlanArgs, GcodeRunArgs};
 
 /// Cycle of the executor (s).
 const DT: f64 = 0.001;
@@ -42,7 +42,7 @@ fn limits(specs: &[String], tolerance: f64, chord: f64) -> Result<Limits3> {
 pub fn plan(a: &GcodePlanArgs) -> Result<()> {
     let src = read_program(&a.program.file)?;
     let l = limits(&a.limits, a.tolerance, a.chord_tolerance)?;
-    let mut cfg = config(&a.program)?;
+    let mut cfg = config(&a.program, GcodeCycles::Motion)?;
     cfg.require_program_end = false;
     let mut run = ProgramRun::new(&src, cfg, l, [0.0; 3])?;
     let t0 = std::time::Instant::now();
@@ -115,7 +115,7 @@ fn gantry_sink(
 /// `motus gcode run` on the simulated drilling machine, optionally moving a cell's gantry.
 pub fn run(a: &GcodeRunArgs) -> Result<()> {
     let src = read_program(&a.program.file)?;
-    let mut cfg = config(&a.program)?;
+    let mut cfg = config(&a.program, GcodeCycles::DrillingTechnology)?;
     cfg.require_program_end = false;
     let cell = a.cell.as_deref().map(gantry_of).transpose()?;
     let limits = cell.as_ref().map_or_else(Limits3::default, |(_, _, l)| *l);
@@ -184,7 +184,7 @@ pub fn run(a: &GcodeRunArgs) -> Result<()> {
     for (i, h) in tech.holes().iter().enumerate() {
         println!(
             "{}",
-            json!({"hole": i + 1, "x": h.tool_xy[0], "y": h.tool_xy[1], "depth_mm": h.depth, "rpm": h.spindle_rpm, "feed_mm_min": h.feed})
+            json!({"hole": i + 1, "x": h.tool_xy[0], "y": h.tool_xy[1], "depth_mm": h.depth, "rpm": h.spindle_rpm, "feed_mm_min": h.feed, "entries": h.entries})
         );
     }
     if let (Some((running, _)), Some((_, group, _)), Ok(_)) = (&gantry, &cell, &result) {

@@ -4,9 +4,11 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use motus_gcode::{format_canon, format_line, Interpreter, InterpreterConfig, MCodeDialect, Precision};
+use motus_gcode::{
+    format_canon, format_line, CycleOutput, Interpreter, InterpreterConfig, MCodeDialect, Precision,
+};
 
-use crate::cli_cnc::{GcodeCanonArgs, GcodeCommand, GcodeDialect, GcodeFileArgs};
+use crate::cli_cnc::{GcodeCanonArgs, GcodeCommand, GcodeCycles, GcodeDialect, GcodeFileArgs};
 
 /// Runs a `gcode` command.
 pub fn run(cmd: GcodeCommand) -> Result<()> {
@@ -23,11 +25,12 @@ pub fn read_program(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
 }
 
-/// The interpreter configuration of the command-line options.
+/// The interpreter configuration of the command-line options (canned cycles as `cycles`
+/// unless `--cycles` says otherwise).
 ///
 /// # Errors
 /// The tool table cannot be read or has a bad line.
-pub fn config(a: &GcodeFileArgs) -> Result<InterpreterConfig> {
+pub fn config(a: &GcodeFileArgs, cycles: GcodeCycles) -> Result<InterpreterConfig> {
     let tools = match &a.tool_table {
         Some(path) => {
             let text = std::fs::read_to_string(path)
@@ -41,10 +44,15 @@ pub fn config(a: &GcodeFileArgs) -> Result<InterpreterConfig> {
         GcodeDialect::Seed => MCodeDialect::Seed,
         GcodeDialect::LinuxCnc => MCodeDialect::LinuxCnc,
     };
+    let cycles = match a.cycles.unwrap_or(cycles) {
+        GcodeCycles::Motion => CycleOutput::Motion,
+        GcodeCycles::DrillingTechnology => CycleOutput::DrillingTechnology,
+    };
     Ok(InterpreterConfig {
         async_m_functions: a.async_m.clone(),
         tools,
         m_codes,
+        cycles,
         ..InterpreterConfig::default()
     })
 }
@@ -52,7 +60,7 @@ pub fn config(a: &GcodeFileArgs) -> Result<InterpreterConfig> {
 fn check(a: &GcodeFileArgs) -> Result<()> {
     let src = read_program(&a.file)?;
     let mut calls = 0usize;
-    for c in Interpreter::with_config(&src, config(a)?) {
+    for c in Interpreter::with_config(&src, config(a, GcodeCycles::Motion)?) {
         match c {
             Ok(_) => calls += 1,
             Err(e) => return Err(anyhow::anyhow!("{}", e.with_file(a.file.display().to_string()))),
@@ -66,7 +74,7 @@ fn canon(a: &GcodeCanonArgs) -> Result<()> {
     let src = read_program(&a.program.file)?;
     let out = std::io::stdout();
     let mut out = std::io::BufWriter::new(out.lock());
-    for (k, c) in Interpreter::with_config(&src, config(&a.program)?).enumerate() {
+    for (k, c) in Interpreter::with_config(&src, config(&a.program, GcodeCycles::Motion)?).enumerate() {
         match c {
             Ok(c) if a.rs274 => {
                 let counter = u32::try_from(k + 1).unwrap_or(u32::MAX);

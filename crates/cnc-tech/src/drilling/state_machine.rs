@@ -18,6 +18,9 @@ const POSITION_TOLERANCE: f64 = 1e-6;
 const SHIFT_TOLERANCE: f64 = 1e-6;
 /// The spindle is at standstill below this speed, rpm.
 const STANDSTILL_RPM: f64 = 0.5;
+/// Between pecks, the tool comes back fast to this distance above the depth reached, and
+/// chip breaking retracts by it, mm (LinuxCNC's 0.010 inch).
+const PECK_CLEARANCE: f64 = 0.254;
 
 /// The drilling technology task.
 #[derive(Debug, Clone, Default)]
@@ -39,6 +42,8 @@ pub struct DrillingTask {
     lift_clearance_set: bool,
     approach_ok: bool,
     hole: Option<HoleSettings>,
+    /// Depth reached in the current hole, mm below the surface (pecking).
+    drilled: f64,
     shift_target: [f64; 2],
     // outputs
     z_cmd: ZCommand,
@@ -152,9 +157,20 @@ impl DrillingTask {
             State::Clamp => self.clamp = true,
             State::Unclamp => self.clamp = false,
             State::Drill => {
-                let (feed, depth) =
-                    self.hole.map_or((p.drilling_speed, p.drilling_depth), |h| (h.feed, h.depth));
+                let (feed, depth) = self.hole.map_or((p.drilling_speed, p.drilling_depth), |h| {
+                    let next = if h.peck > 0.0 { (self.drilled + h.peck).min(h.depth) } else { h.depth };
+                    (h.feed, next)
+                });
                 self.move_z(self.contact_z(z_sw) - depth, feed);
+            }
+            State::PeckRetract => {
+                let chip_break = self.hole.is_some_and(|h| h.chip_break);
+                let target =
+                    if chip_break { self.inp.z + PECK_CLEARANCE } else { self.tool_approach_z(z_sw) };
+                self.move_z(target, p.retract_speed);
+            }
+            State::PeckReturn => {
+                self.move_z(self.contact_z(z_sw) - self.drilled + PECK_CLEARANCE, p.rapid_speed);
             }
             State::Retract => self.move_z(self.tool_approach_z(z_sw), p.retract_speed),
             State::AboveMaterial => self.move_z(self.plate_approach_z(z_sw), p.rapid_speed),
@@ -225,7 +241,12 @@ impl DrillingTask {
             rpm: i32::from(self.inp.ext_spindle_rpm),
             feed: f64::from(self.inp.ext_drilling_speed),
             depth: f64::from(self.inp.ext_drilling_depth),
+            peck: f64::from(self.inp.ext_peck_increment),
+            chip_break: self.inp.ext_chip_break != 0,
         };
+        if !(h.peck.is_finite() && h.peck >= 0.0) {
+            return Err(DrillingError::InvalidParameter { name: "EXF63 peck increment", value: h.peck });
+        }
         self.check_hole(h, ["EXW60 spindle rpm", "EXF61 drilling speed", "EXF62 drilling depth"])
     }
 
@@ -288,12 +309,18 @@ impl DrillingTask {
                     self.hole_from_ext()?
                 } else {
                     let p = self.para;
-                    let h =
-                        HoleSettings { rpm: p.spindle_rpm, feed: p.drilling_speed, depth: p.drilling_depth };
+                    let h = HoleSettings {
+                        rpm: p.spindle_rpm,
+                        feed: p.drilling_speed,
+                        depth: p.drilling_depth,
+                        peck: 0.0,
+                        chip_break: false,
+                    };
                     self.check_hole(h, ["spindle rpm", "drilling speed", "drilling depth"])?
                 };
                 self.check_geometry()?;
                 self.hole = Some(hole);
+                self.drilled = 0.0;
                 self.info.hole = Some(hole);
                 self.rpm = hole.rpm;
                 self.go(if sim { State::Simulated } else { State::SpindleStart });
@@ -459,7 +486,23 @@ impl DrillingTask {
             State::Clamp => self.go(State::Drill),
             State::Drill => {
                 if arrived {
-                    self.go(State::Retract);
+                    self.drilled = self.contact_z(self.z_switch()) - inp.z;
+                    let depth = self.hole.map_or(self.para.drilling_depth, |h| h.depth);
+                    if self.drilled < depth - POSITION_TOLERANCE {
+                        self.go(State::PeckRetract);
+                    } else {
+                        self.go(State::Retract);
+                    }
+                }
+            }
+            State::PeckRetract => {
+                if arrived {
+                    self.go(State::PeckReturn);
+                }
+            }
+            State::PeckReturn => {
+                if arrived {
+                    self.go(State::Drill);
                 }
             }
             State::Retract => {
@@ -596,7 +639,11 @@ impl Task for DrillingTask {
         if inp.z_limit {
             return Some(DrillingError::ZLimit { z: inp.z, state });
         }
-        if matches!(state, State::Clamp | State::Drill | State::Retract) && !inp.spindle_ready {
+        let in_hole = matches!(
+            state,
+            State::Clamp | State::Drill | State::PeckRetract | State::PeckReturn | State::Retract
+        );
+        if in_hole && !inp.spindle_ready {
             return Some(DrillingError::SpindleLost { state });
         }
         let after_s = self.timer.elapsed();

@@ -25,6 +25,12 @@ pub(crate) const EXW_SPINDLE_RPM: usize = 60;
 pub(crate) const EXF_DRILLING_SPEED: usize = 61;
 /// Index of the drilling depth in the F array (EXF62, mm).
 pub(crate) const EXF_DRILLING_DEPTH: usize = 62;
+/// Index of the peck increment in the F array (EXF63, mm; 0: one pass). A Motus extension
+/// of the seed's interface, for G73/G83 (see docs/decisions.md).
+pub(crate) const EXF_PECK_INCREMENT: usize = 63;
+/// Index of the chip-breaking switch in the B array (EXB64: 1 = a short retract in the
+/// hole between pecks, as G73; 0 = out of the hole, as G83).
+pub(crate) const EXB_CHIP_BREAK: usize = 64;
 
 /// A set of the technology's M-functions (M60..=M64).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -266,8 +272,12 @@ pub enum State {
     ToolApproach,
     /// Clamping the material.
     Clamp,
-    /// Drilling at the drilling speed to depth.
+    /// Drilling at the drilling speed to depth (or to the next peck's depth).
     Drill,
+    /// Between pecks: out of the hole (G83) or back a little (chip breaking, G73).
+    PeckRetract,
+    /// Between pecks: fast back down to just above the depth reached.
+    PeckReturn,
     /// Retracting out of the hole.
     Retract,
     /// Releasing the clamp.
@@ -303,6 +313,8 @@ impl State {
             Self::ToolApproach => "ToolApproach",
             Self::Clamp => "Clamp",
             Self::Drill => "Drill",
+            Self::PeckRetract => "PeckRetract",
+            Self::PeckReturn => "PeckReturn",
             Self::Retract => "Retract",
             Self::Unclamp => "Unclamp",
             Self::AboveMaterial => "AboveMaterial",
@@ -422,6 +434,10 @@ pub struct HoleSettings {
     pub feed: f64,
     /// Depth below the surface, mm.
     pub depth: f64,
+    /// Peck increment, mm (0: the whole depth in one pass).
+    pub peck: f64,
+    /// Between pecks, only a short retract in the hole (chip breaking) instead of out of it.
+    pub chip_break: bool,
 }
 
 /// Status of the technology (the source's `tk_VRT_FREZ_info_type`, Tab. 8.4, plus the
@@ -472,6 +488,10 @@ pub struct DrillingInputs {
     pub ext_drilling_speed: f32,
     /// EXF62, drilling depth, mm.
     pub ext_drilling_depth: f32,
+    /// EXF63, peck increment, mm (0: one pass).
+    pub ext_peck_increment: f32,
+    /// EXB64, 1: chip breaking between pecks.
+    pub ext_chip_break: i8,
     /// Z of the drilling unit, mm.
     pub z: f64,
     /// Z axis at its travel limit.
@@ -504,6 +524,8 @@ impl DrillingInputs {
             ext_spindle_rpm: ext.get_w(EXW_SPINDLE_RPM).unwrap_or(0),
             ext_drilling_speed: ext.get_f(EXF_DRILLING_SPEED).unwrap_or(0.0),
             ext_drilling_depth: ext.get_f(EXF_DRILLING_DEPTH).unwrap_or(0.0),
+            ext_peck_increment: ext.get_f(EXF_PECK_INCREMENT).unwrap_or(0.0),
+            ext_chip_break: ext.get_b(EXB_CHIP_BREAK).unwrap_or(0),
             z: machine.z,
             z_limit: machine.z_limit,
             plate_switch: machine.plate_switch,

@@ -4,6 +4,7 @@
 //! level kept for G98 until G80 or another motion, the exact-path mode around each cycle
 //! block, the 0.010 inch rapid clearance of the peck cycles) and its error checks.
 
+use super::drilling_technology::TechnologyHole;
 use super::feed::FeedMode;
 use super::motion::Motion;
 use super::Interpreter;
@@ -199,6 +200,18 @@ impl Interpreter<'_> {
         if moves > MAX_CYCLE_MOVES as f64 {
             return Err((col, ErrorKind::CycleTooManyMoves(MAX_CYCLE_MOVES)));
         }
+        if self.cycles_on_technology() {
+            self.check_technology_cycle(cycle, col)?;
+            let feed_mm_per_min = self.move_feed(0.0, b, 1, col)?;
+            for _ in 0..repeats {
+                x += dx;
+                y += dy;
+                let hole = TechnologyHole { x, y, bottom, peck: delta, feed_mm_per_min };
+                self.technology_hole(cycle, &hole, col)?;
+            }
+            self.remember_cycle_words(cycle, z_word, r_word, dwell, delta);
+            return Ok(());
+        }
         let feed = Some(self.move_feed(0.0, b, 1, col)?);
         // Below the R plane: straight up to it first, where the tool is.
         let mut level = current_z;
@@ -250,13 +263,7 @@ impl Interpreter<'_> {
             self.cycle_move(if cycle == Cycle::G89 { feed } else { None }, x, y, clear);
             level = clear;
         }
-        self.cycles.z = z_word;
-        self.cycles.r = r_word;
-        match cycle {
-            Cycle::G82 | Cycle::G89 => self.cycles.p = dwell,
-            Cycle::G73 | Cycle::G83 => self.cycles.q = delta,
-            _ => {}
-        }
+        self.remember_cycle_words(cycle, z_word, r_word, dwell, delta);
         if saved.mode != MotionControl::ExactPath {
             self.emit(Canon::SetMotionControlMode { mode: saved.mode, tolerance: saved.tolerance });
             self.emit(Canon::SetNaivecamTolerance { tolerance: saved.naivecam });
@@ -264,9 +271,20 @@ impl Interpreter<'_> {
         Ok(())
     }
 
+    /// The sticky words of a cycle block, for the blocks after it.
+    fn remember_cycle_words(&mut self, cycle: Cycle, z: f64, r: f64, dwell: f64, delta: f64) {
+        self.cycles.z = z;
+        self.cycles.r = r;
+        match cycle {
+            Cycle::G82 | Cycle::G89 => self.cycles.p = dwell,
+            Cycle::G73 | Cycle::G83 => self.cycles.q = delta,
+            _ => {}
+        }
+    }
+
     /// One straight move of a cycle to (`x`, `y`, `z`), the other axes where they are: at
     /// `feed` (mm/min), or a rapid when `None`.
-    fn cycle_move(&mut self, feed: Option<f64>, x: f64, y: f64, z: f64) {
+    pub(super) fn cycle_move(&mut self, feed: Option<f64>, x: f64, y: f64, z: f64) {
         let start = self.pos;
         let mut end = start;
         for (k, v) in [(0, x), (1, y), (2, z)] {

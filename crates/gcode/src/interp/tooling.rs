@@ -64,6 +64,7 @@ impl Interpreter<'_> {
             if index > 0 {
                 self.tool.current = (number, index);
                 self.publish_tool_params();
+                self.technology_tool_changed();
             }
         }
         Ok(())
