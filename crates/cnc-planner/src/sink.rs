@@ -3,7 +3,8 @@
 //! Each cycle, every mapped axis whose set-point moved gets a `MoveAbsolute` to the new
 //! position with the set-point speed as the profile velocity and its CNC acceleration limit
 //! as the profile acceleration, both converted to SI with the axis' factor (0.001 m per mm,
-//! π/180 rad per degree). This suits drives that follow a stream of absolute targets
+//! π/180 rad per degree); a set-point at rest whose target still moved takes the axis's own
+//! speed. This suits drives that follow a stream of absolute targets
 //! (position-increment or cyclic modes); the drive's own interpolation fills the cycle.
 
 use crate::config::Config;
@@ -83,10 +84,13 @@ impl<const N: usize> AxisSink<N> {
                 continue;
             }
             let k = m.si_per_unit;
+            // A set-point at rest (the path's last, or a stop) with the target still moved:
+            // the axis's own profile, not a crawl at a near-zero speed.
+            let speed = v.abs() * k;
             let command = AxisCommand::MoveAbsolute {
                 target: p * k,
                 profile: MotionProfile {
-                    velocity: Some((v.abs() * k).max(f64::EPSILON)),
+                    velocity: (speed > f64::EPSILON).then_some(speed),
                     acceleration: Some(a * k),
                     deceleration: Some(a * k),
                 },

@@ -10,17 +10,20 @@
 //!   velocity and acceleration measured on the executed set-points.
 //! * [`service`]: [`service::ProgramService`], programs run in real time on a thread (hold,
 //!   resume, stop, status) for the station.
+//! * [`executed`]: [`executed::ExecutedPath`], the executed path of a run for the HMI.
 //! * [`technology`]: the [`Technology`] trait and [`technology::DrillingTechnology`].
 
 #![forbid(unsafe_code)]
 
 pub mod adapter;
+pub mod executed;
 pub mod runner;
 pub mod service;
 pub mod technology;
 
+pub use executed::{ExecutedPath, PathBatch};
 pub use runner::{Limits3, ProgramRun, RunError, RunReport, RunStatus};
-pub use service::{ProgramService, ServiceState, ServiceStatus};
+pub use service::{OverrideError, ProgramService, ServiceState, ServiceStatus, SetpointSink};
 pub use technology::{DrillingTechnology, NoTechnology, Technology, TechnologyError};
 
 /// Number of CNC axes planned (X, Y, Z).

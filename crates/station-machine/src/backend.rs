@@ -8,9 +8,9 @@ use motus_axis::{AxisCommand, AxisError, Direction, MotionProfile};
 use motus_cell::{GroupHandle, Pattern};
 use motus_station::scheduler::ClassState;
 use motus_station_web::{
-    AxisAction, AxisLimits, AxisParameters, AxisView, BackendError, Caller, GroupAction, GroupKind,
-    GroupView, MachineBackend, PredictedReach, ProgramCheck, ProgramInfo, ProgramStatus, RobotScene,
-    RunState, SafetyView, Sample, SampleBatch, SceneView, SignalView, TaskView,
+    AxisAction, AxisLimits, AxisParameters, AxisView, BackendError, Caller, ExecutedPathView, GroupAction,
+    GroupKind, GroupView, MachineBackend, PredictedReach, ProgramCheck, ProgramInfo, ProgramPreview,
+    ProgramStatus, RobotScene, RunState, SafetyView, Sample, SampleBatch, SceneView, SignalView, TaskView,
 };
 
 use motus_lab::Role;
@@ -47,7 +47,7 @@ fn restricted(caller: &Caller) -> bool {
 }
 
 impl StationMachine {
-    fn view(&self, id: &str) -> Result<AxisView, BackendError> {
+    pub(crate) fn view(&self, id: &str) -> Result<AxisView, BackendError> {
         self.shared
             .views
             .read()
@@ -134,7 +134,7 @@ impl StationMachine {
 
     /// What every motion command needs besides its numbers: no E-stop, the axis's device
     /// connected, the juggler's supervisor not holding its axes.
-    fn motion_allowed(&self, view: &AxisView) -> Result<(), BackendError> {
+    pub(crate) fn motion_allowed(&self, view: &AxisView) -> Result<(), BackendError> {
         if self.shared.estop.load(Ordering::Relaxed) {
             return Err(BackendError::EStopped);
         }
@@ -148,6 +148,12 @@ impl StationMachine {
             if let Some(why) = self.juggler_blocks() {
                 return Err(BackendError::SafetyHold(why));
             }
+        }
+        if self.is_gantry_axis(&view.id) && self.program_active() {
+            return Err(BackendError::State(format!(
+                "axis {} is driven by the running program: stop the program first",
+                view.id
+            )));
         }
         Ok(())
     }
@@ -318,6 +324,11 @@ impl MachineBackend for StationMachine {
 
     fn command(&self, caller: &Caller, axis: &str, action: AxisAction) -> Result<(), BackendError> {
         let view = self.view(axis)?;
+        if matches!(action, AxisAction::Stop) && self.is_gantry_axis(axis) {
+            // A stop of one gantry axis stops the program that drives it (else its next
+            // set-point would move the axis again).
+            self.programs.service.stop();
+        }
         action.validate(&view)?;
         self.check_student(caller, &view, &action)?;
         if !matches!(action, AxisAction::Stop) {
@@ -540,8 +551,7 @@ impl MachineBackend for StationMachine {
         if self.shared.estop.load(Ordering::Relaxed) {
             return Err(BackendError::EStopped);
         }
-        let st = self.programs.service.status();
-        if matches!(st.state, motus_cnc::ServiceState::Running | motus_cnc::ServiceState::Held) {
+        if self.program_active() {
             return Err(BackendError::State("a program is running".into()));
         }
         // The cached check (the checker's thread interpreted it within its budget).
@@ -550,8 +560,9 @@ impl MachineBackend for StationMachine {
             return Err(BackendError::invalid("program", format!("{}:{}: {}", e.line, e.col, e.message)));
         }
         self.check_student_program(caller, &check)?;
-        tracing::info!(user = %caller.user, id, demands = ?check.demands, "program run");
-        self.programs.service.run_checked(id, &text);
+        let start = self.gantry_ready()?;
+        tracing::info!(user = %caller.user, id, demands = ?check.demands, ?start, "program run");
+        self.programs.service.run_checked_from(id, &text, start);
         *lock(&self.programs.running) = Some(id.to_owned());
         Ok(())
     }
@@ -594,6 +605,7 @@ impl MachineBackend for StationMachine {
                 motus_cnc::ServiceState::Idle => RunState::Idle,
                 motus_cnc::ServiceState::Running => RunState::Running,
                 motus_cnc::ServiceState::Held => RunState::Held,
+                motus_cnc::ServiceState::BlockStop => RunState::BlockStop,
                 motus_cnc::ServiceState::Done => RunState::Done,
                 motus_cnc::ServiceState::Stopped => RunState::Stopped,
             },
@@ -602,7 +614,66 @@ impl MachineBackend for StationMachine {
             line: s.line as usize,
             line_text: s.line_text,
             message: s.message,
+            xyz: s.xyz,
+            feed: s.feed,
+            override_percent: s.override_percent,
+            single_block: s.single_block,
         }
+    }
+
+    fn set_program_override(&self, caller: &Caller, percent: f64) -> Result<(), BackendError> {
+        if !(0.0..=200.0).contains(&percent) {
+            return Err(BackendError::invalid("percent", format!("{percent} is outside 0-200")));
+        }
+        if restricted(caller) && percent > 100.0 {
+            return Err(BackendError::Forbidden(format!(
+                "feed override {percent} %: students may run at most 100 % (their programs are checked \
+                 against the student limits at 100 %)"
+            )));
+        }
+        tracing::info!(user = %caller.user, percent, "feed override");
+        self.programs
+            .service
+            .set_override(percent)
+            .map_err(|e| BackendError::invalid("percent", e.to_string()))
+    }
+
+    fn set_single_block(&self, caller: &Caller, on: bool) -> Result<(), BackendError> {
+        tracing::info!(user = %caller.user, on, "single block");
+        self.programs.service.set_single_block(on);
+        Ok(())
+    }
+
+    fn program_preview(&self, caller: &Caller, id: &str) -> Result<ProgramPreview, BackendError> {
+        self.programs.preview(caller, id)
+    }
+
+    fn executed_path(&self, run: u64, cursor: u64) -> ExecutedPathView {
+        let b = self.programs.service.executed_path(run, cursor);
+        ExecutedPathView { run: b.run, from: b.from, next: b.next, points: b.points }
+    }
+
+    fn check_mdi(&self, caller: &Caller, line: &str) -> Result<ProgramCheck, BackendError> {
+        self.checked_mdi(caller, line)
+    }
+
+    fn run_mdi(&self, caller: &Caller, line: &str) -> Result<(), BackendError> {
+        if self.shared.estop.load(Ordering::Relaxed) {
+            return Err(BackendError::EStopped);
+        }
+        if self.program_active() {
+            return Err(BackendError::State("a program is running: MDI waits until it ends".into()));
+        }
+        let check = self.checked_mdi(caller, line)?;
+        if let Some(e) = check.errors.first() {
+            return Err(BackendError::invalid("line", format!("{}:{}: {}", e.line, e.col, e.message)));
+        }
+        self.check_student_program(caller, &check)?;
+        let start = self.gantry_ready()?;
+        tracing::info!(user = %caller.user, line, ?start, "MDI");
+        self.programs.service.run_checked_from("MDI", line.trim(), start);
+        *lock(&self.programs.running) = Some("MDI".to_owned());
+        Ok(())
     }
 
     fn signals(&self) -> Vec<SignalView> {
@@ -675,9 +746,21 @@ impl MachineBackend for StationMachine {
                     }
                 }
                 GroupHandle::Axes => {
-                    let s = self.programs.service.status();
-                    scene.gantry =
-                        Some(([s.xyz[0] / 1000.0, s.xyz[1] / 1000.0, s.xyz[2] / 1000.0], [2.0, 1.5, 0.3]));
+                    // Where the gantry's axes are (their drives' positions), in metres.
+                    let mut at = [0.0; 3];
+                    for (slot, a) in at.iter_mut().zip(&g.axes) {
+                        *slot = pos(a).unwrap_or(0.0);
+                    }
+                    let size = g
+                        .axes
+                        .iter()
+                        .take(3)
+                        .map(|a| views.iter().find(|v| &v.id == a).map_or(1.0, |v| v.limits.max));
+                    let mut extent = [2.0, 1.5, 0.3];
+                    for (slot, m) in extent.iter_mut().zip(size) {
+                        *slot = m;
+                    }
+                    scene.gantry = Some((at, extent));
                 }
             }
         }

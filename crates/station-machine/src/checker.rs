@@ -84,6 +84,8 @@ pub(crate) struct Analysis {
     pub errors: Vec<ProgramDiagnostic>,
     /// Per gantry axis the program moves.
     pub extents: Vec<Extent>,
+    /// The tool path, for the HMI's preview.
+    pub preview: motus_station_web::ProgramPreview,
     /// Lines executed.
     pub steps: u64,
     /// Wall time of the check.
@@ -264,11 +266,13 @@ pub(crate) fn analyse(
     let mut errors = Vec::new();
     let mut interp = Interpreter::with_config(text, config);
     let mut moved = false;
+    let mut preview = crate::preview::PreviewBuilder::default();
     for call in interp.by_ref() {
         match call {
             Ok(c) => {
                 if let Some(m) = &c.machine {
                     acc.visit(c.line, m);
+                    preview.visit(m);
                     moved = true;
                 }
             }
@@ -305,6 +309,7 @@ pub(crate) fn analyse(
     Analysis {
         errors,
         extents: acc.extents.into_iter().flatten().collect(),
+        preview: preview.finish(),
         steps: interp.steps(),
         elapsed: started.elapsed(),
     }

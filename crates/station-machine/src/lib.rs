@@ -19,8 +19,10 @@ pub mod alarms;
 pub mod backend;
 mod checker;
 pub mod demo;
+mod gantry;
 pub mod jog;
 mod poller;
+mod preview;
 mod programs;
 mod quick_stop;
 mod robot;
@@ -365,7 +367,7 @@ impl StationMachine {
                 }
             })?);
         }
-        let programs = programs::Programs::start(cell, options.program_checks)?;
+        let programs = programs::Programs::start(cell, &shared, options.program_checks)?;
         Ok(Self { shared, programs, camera_url: options.camera_url, quick_stoppers, threads, tasks })
     }
 

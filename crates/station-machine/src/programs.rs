@@ -13,6 +13,7 @@ use motus_station_web::{BackendError, Caller, ProgramCheck, ProgramDiagnostic, P
 
 use crate::checker::{Analysis, CheckError, Checker, GantryAxis, ProgramCheckOptions};
 use crate::lock;
+use motus_station_web::ProgramPreview;
 
 /// One stored program.
 pub(crate) struct Entry {
@@ -33,7 +34,7 @@ pub(crate) struct Programs {
     pub(crate) service: ProgramService,
     pub(crate) running: Mutex<Option<String>>,
     pub(crate) checker: Checker,
-    versions: AtomicU64,
+    pub(crate) versions: AtomicU64,
 }
 
 /// The cell's gantry (program X, Y, Z onto its axes, in order) and the planner limits of
@@ -63,14 +64,19 @@ fn gantry(cell: &Cell) -> Option<(Vec<GantryAxis>, Limits3)> {
 }
 
 impl Programs {
-    pub(crate) fn start(cell: &Cell, options: ProgramCheckOptions) -> std::io::Result<Self> {
+    pub(crate) fn start(
+        cell: &Cell,
+        shared: &Arc<crate::Shared>,
+        options: ProgramCheckOptions,
+    ) -> std::io::Result<Self> {
         let gantry = gantry(cell);
         let limits = gantry.as_ref().map_or_else(Limits3::default, |(_, l)| *l);
         let budget = options.time_budget.unwrap_or(cell.station.program_check_time);
         let config = InterpreterConfig { max_steps: options.max_steps, ..InterpreterConfig::default() };
         Ok(Self {
             store: Mutex::new(BTreeMap::new()),
-            service: ProgramService::start(limits, config, None)?,
+            // The booked machine's gantry follows every set-point.
+            service: ProgramService::start(limits, config, crate::gantry::sink(shared, &limits))?,
             running: Mutex::new(None),
             checker: Checker::start(options, budget, gantry.map(|(g, _)| g))?,
             versions: AtomicU64::new(1),
@@ -140,6 +146,11 @@ impl Programs {
         Ok((info, text, analysis))
     }
 
+    /// The preview of program `id` (from its check).
+    pub(crate) fn preview(&self, caller: &Caller, id: &str) -> Result<ProgramPreview, BackendError> {
+        Ok(self.analysis(caller, id)?.2.preview.clone())
+    }
+
     /// Publishes program `id` to every student (or withdraws it).
     pub(crate) fn publish(&self, id: &str, published: bool) -> Result<ProgramInfo, BackendError> {
         let mut store = lock(&self.store);
@@ -166,6 +177,39 @@ impl crate::StationMachine {
         id: &str,
     ) -> Result<(ProgramInfo, Arc<str>, ProgramCheck), BackendError> {
         let (info, text, a) = self.programs.analysis(caller, id)?;
+        Ok((info, text, self.check_of(&a)))
+    }
+
+    /// One MDI line checked as a program of its own (viewers refused; one line of at most
+    /// [`motus_station_web::api_cnc::MDI_MAX_LEN`] bytes).
+    pub(crate) fn checked_mdi(&self, caller: &Caller, line: &str) -> Result<ProgramCheck, BackendError> {
+        if caller.role == Role::Viewer {
+            return Err(BackendError::Forbidden("viewers cannot run MDI".into()));
+        }
+        let line = line.trim();
+        if line.is_empty()
+            || line.contains(['\n', '\r'])
+            || line.len() > motus_station_web::api_cnc::MDI_MAX_LEN
+        {
+            return Err(BackendError::invalid(
+                "line",
+                format!("one G-code line of 1 to {} bytes", motus_station_web::api_cnc::MDI_MAX_LEN),
+            ));
+        }
+        let version = self.programs.versions.fetch_add(1, Ordering::Relaxed);
+        let analysis =
+            self.programs.checker.check(&format!("mdi:{}", caller.user), version, Arc::from(line)).map_err(
+                |e| match e {
+                    CheckError::Busy(_) => BackendError::Busy(e.to_string()),
+                    CheckError::Stopped | CheckError::Late => BackendError::Failed(e.to_string()),
+                },
+            )?;
+        Ok(self.check_of(&analysis))
+    }
+
+    /// The station's verdict on an analysis: its errors, plus every extent beyond an axis's
+    /// machine travel, and the per-axis demands.
+    fn check_of(&self, a: &Analysis) -> ProgramCheck {
         let views = self.shared.views.read().unwrap_or_else(PoisonError::into_inner);
         let mut errors = a.errors.clone();
         let mut demands = Vec::new();
@@ -191,7 +235,58 @@ impl crate::StationMachine {
             }
             demands.push((e.axis.clone(), MotionDemand::within(e.speed, e.acceleration, e.lo.0, e.hi.0)));
         }
-        Ok((info, text, ProgramCheck { errors, demands }))
+        ProgramCheck { errors, demands }
+    }
+
+    /// The gantry ready for a program: every axis connected, not E-stopped, homed (the
+    /// program's travel was checked in absolute positions), switched on; returns where it is
+    /// (X, Y, Z in program millimetres), where the run starts.
+    pub(crate) fn gantry_ready(&self) -> Result<[f64; 3], BackendError> {
+        let Some(indices) = crate::gantry::gantry_axes(&self.shared) else {
+            return Err(BackendError::State(
+                "this cell has no gantry group (kind = \"gantry\"): programs cannot move anything here"
+                    .into(),
+            ));
+        };
+        let mut start = [0.0; 3];
+        for (slot, index) in start.iter_mut().zip(indices) {
+            let Some(entry) = self.shared.axes.get(index) else { continue };
+            let view = self.view(&entry.view.id)?;
+            self.motion_allowed(&view)?;
+            if !view.homed {
+                return Err(BackendError::State(format!(
+                    "gantry axis {} is not homed: home the gantry first (a program's travel is checked in \
+                     absolute positions)",
+                    view.id
+                )));
+            }
+            if !view.enabled {
+                crate::lock(&entry.axis).execute(&motus_axis::AxisCommand::Enable).map_err(|e| {
+                    BackendError::State(format!("gantry axis {} cannot be switched on: {e}", view.id))
+                })?;
+            }
+            *slot = view.position * 1000.0;
+        }
+        Ok(start)
+    }
+
+    /// Whether a program (or an MDI line) is running, held or at a block stop.
+    pub(crate) fn program_active(&self) -> bool {
+        matches!(
+            self.programs.service.status().state,
+            motus_cnc::ServiceState::Running
+                | motus_cnc::ServiceState::Held
+                | motus_cnc::ServiceState::BlockStop
+        )
+    }
+
+    /// Whether `axis` is one of the gantry's.
+    pub(crate) fn is_gantry_axis(&self, axis: &str) -> bool {
+        self.shared
+            .config
+            .groups
+            .iter()
+            .any(|g| g.kind == motus_station::config::GroupKind::Gantry && g.axes.iter().any(|a| a == axis))
     }
 
     /// Defence in depth (the lab checked first): a student's program stays within the

@@ -51,6 +51,13 @@ fn add_user(admin: &Client, name: &str, role: &str) -> Client {
     Client::login(&admin.addr, name, &password)
 }
 
+/// Homes the gantry (x, y, z): programs run only on a homed gantry.
+fn home_gantry(admin: &Client) {
+    for axis in ["x", "y", "z"] {
+        admin.home(axis);
+    }
+}
+
 fn wait_program(c: &Client, state: &str) -> Value {
     let t0 = Instant::now();
     loop {
@@ -232,6 +239,7 @@ fn a_program_cannot_take_a_student_beyond_the_limits_and_nothing_moves() {
     let admin = Client::login(&st.addr, "admin", "admin-password-1");
     let student = Client::login(&st.addr, "student", "student-password-1");
     book(&student);
+    home_gantry(&admin);
     let x0 = student.axis("x")["position"].as_f64().unwrap();
 
     // X 500 mm = 0.5 m is inside the student range of x ([0, 0.55] m), but F1000000 (16.7 m/s)
@@ -311,10 +319,12 @@ fn a_program_cannot_take_a_student_beyond_the_limits_and_nothing_moves() {
     student.ok("POST", &format!("/api/programs/{ok}/run"), Value::Null);
     let t0 = Instant::now();
     let mut moved = false;
+    let mut axis_moved = 0.0f64;
     loop {
         let s = student.ok("GET", "/api/programs/status", Value::Null);
         let g = student.ok("GET", "/api/scene", Value::Null)["gantry"][0][0].as_f64().unwrap();
         moved |= g > 0.0;
+        axis_moved = axis_moved.max(student.axis("x")["position"].as_f64().unwrap());
         if s["state"] == "done" {
             break;
         }
@@ -322,7 +332,11 @@ fn a_program_cannot_take_a_student_beyond_the_limits_and_nothing_moves() {
         assert!(t0.elapsed() < Duration::from_secs(30), "{s}");
         std::thread::sleep(Duration::from_millis(20));
     }
-    assert!(moved, "the run moved the gantry");
+    assert!(moved, "the run moved the gantry in the scene");
+    // The booked machine's axis x itself went out towards X 50 mm (0.05 m) and came back.
+    assert!(axis_moved > 0.02, "axis x reached {axis_moved} m");
+    let x_end = student.wait_axis("x", Duration::from_secs(10), "back and still", |a| a["moving"] == false);
+    assert!(x_end["position"].as_f64().unwrap().abs() < 1e-4, "{x_end}");
     assert!(audit(&admin, "student", "command.run_program").iter().any(|r| r["target"]
         .as_str()
         .unwrap()
@@ -347,6 +361,7 @@ fn students_see_check_and_run_their_own_and_published_programs_viewers_neither()
     let (secret, _) = upload(&admin, "secret.ngc", inside);
     // Only an admin publishes (audited).
     let reservation = book(&student);
+    home_gantry(&admin);
     let (mine, _) = upload(&student, "mine.ngc", inside);
     assert_eq!(student.call("POST", &format!("/api/programs/{mine}/publish"), Value::Null).0, 403);
     let p = admin.ok("POST", &format!("/api/programs/{public}/publish"), Value::Null);
@@ -423,4 +438,112 @@ fn students_see_check_and_run_their_own_and_published_programs_viewers_neither()
     }
     wait_program(&student2, "done");
     assert!(audit(&admin, "student2", "command.run_program").iter().any(|e| e["outcome"]["result"] == "ok"));
+}
+
+/// The runner on the booked machine: a preview of the checked program, the executed path
+/// drawn from the gantry's set-points, the feed override seen in the executed feed, single
+/// block, MDI, and the server's limits (students at most 100 %, no jog of a gantry axis the
+/// program drives, the E-stop ends the run); every command audited.
+#[test]
+fn the_runner_drives_the_gantry_with_override_single_block_mdi_preview_and_path() {
+    let _serial = serial();
+    let st = common::station();
+    let admin = Client::login(&st.addr, "admin", "admin-password-1");
+    let student = Client::login(&st.addr, "student", "student-password-1");
+    book(&student);
+    home_gantry(&admin);
+    // A square of 40 mm at 1200 mm/min (20 mm/s, within the student's 80 mm/s).
+    let square = "G21 G90 F1200\nG1 X40\nG1 Y40\nG1 X0\nG1 Y0\nM2\n";
+    let (id, check) = upload(&student, "square.ngc", square);
+    assert_eq!(check["errors"], json!([]), "{check}");
+    let preview = student.ok("GET", &format!("/api/programs/{id}/preview"), Value::Null);
+    let pts: Vec<Vec<f64>> = serde_json::from_value(preview["points"].clone()).unwrap();
+    assert_eq!(
+        pts,
+        vec![vec![0.0; 3], vec![40.0, 0.0, 0.0], vec![40.0, 40.0, 0.0], vec![0.0, 40.0, 0.0], vec![0.0; 3]]
+    );
+
+    // Students stay at or below 100 % (refused and audited), admins may go to 200 %.
+    let (code, body) = student.call("POST", "/api/programs/override", json!({ "percent": 150.0 }));
+    assert_eq!(code, 403, "{body}");
+    let (code, body) = admin.call("POST", "/api/programs/override", json!({ "percent": 250.0 }));
+    assert_eq!(code, 400, "{body}");
+    student.ok("POST", "/api/programs/override", json!({ "percent": 100.0 }));
+
+    student.ok("POST", &format!("/api/programs/{id}/run"), Value::Null);
+    std::thread::sleep(Duration::from_millis(500));
+    let at_100 = student.ok("GET", "/api/programs/status", Value::Null);
+    assert!((at_100["feed"].as_f64().unwrap() - 1200.0).abs() < 1.0, "{at_100}");
+    // The gantry axis the program drives refuses a jog meanwhile.
+    let (code, body) = student.call("POST", "/api/axes/x/jog", json!({ "direction": 1.0, "speed": 0.01 }));
+    assert_eq!(code, 409, "{body}");
+    assert!(body["detail"].as_str().unwrap().contains("driven by the running program"), "{body}");
+    student.ok("POST", "/api/programs/override", json!({ "percent": 50.0 }));
+    std::thread::sleep(Duration::from_millis(400));
+    let at_50 = student.ok("GET", "/api/programs/status", Value::Null);
+    assert!((at_50["feed"].as_f64().unwrap() - 600.0).abs() < 1.0, "{at_50}");
+    assert_eq!(at_50["override_percent"], 50.0);
+    student.ok("POST", "/api/programs/override", json!({ "percent": 100.0 }));
+    wait_program(&student, "done");
+    // The executed path went round the square, on the gantry's axes.
+    let path = student.ok("GET", "/api/programs/path?run=0&cursor=0", Value::Null);
+    let pts: Vec<Vec<f64>> = serde_json::from_value(path["points"].clone()).unwrap();
+    let corner = |x: f64, y: f64| pts.iter().any(|p| (p[0] - x).abs() < 0.2 && (p[1] - y).abs() < 0.2);
+    assert!(corner(40.0, 0.0) && corner(40.0, 40.0) && corner(0.0, 40.0), "{path}");
+    let more = student.ok(
+        "GET",
+        &format!("/api/programs/path?run={}&cursor={}", path["run"], path["next"]),
+        Value::Null,
+    );
+    assert_eq!(more["points"], json!([]), "{more}");
+
+    // Single block: a stop after each block, resume (cycle start) for the next.
+    student.ok("POST", "/api/programs/single-block", json!({ "on": true }));
+    student.ok("POST", &format!("/api/programs/{id}/run"), Value::Null);
+    let first = wait_program(&student, "block_stop");
+    let x = student.wait_axis("x", Duration::from_secs(10), "at the first corner", |a| a["moving"] == false);
+    assert!((x["position"].as_f64().unwrap() - 0.04).abs() < 1e-4, "{x} {first}");
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(student.ok("GET", "/api/programs/status", Value::Null)["state"], "block_stop");
+    student.ok("POST", "/api/programs/resume", Value::Null);
+    let y = student.wait_axis("y", Duration::from_secs(10), "at the second corner", |a| {
+        (a["position"].as_f64().unwrap() - 0.04).abs() < 1e-4 && a["moving"] == false
+    });
+    assert_eq!(student.ok("GET", "/api/programs/status", Value::Null)["state"], "block_stop", "{y}");
+    student.ok("POST", "/api/programs/single-block", json!({ "on": false }));
+    student.ok("POST", "/api/programs/resume", Value::Null);
+    wait_program(&student, "done");
+
+    // MDI: one line, checked like a program (travel, student limits), then executed.
+    student.ok("POST", "/api/mdi", json!({ "line": "G1 X12 Y7 F600" }));
+    wait_program(&student, "done");
+    let x = student.wait_axis("x", Duration::from_secs(10), "at X 12", |a| a["moving"] == false);
+    assert!((x["position"].as_f64().unwrap() - 0.012).abs() < 1e-4, "{x}");
+    let (code, body) = student.call("POST", "/api/mdi", json!({ "line": "G1 X700 F600" }));
+    assert_eq!(code, 400, "beyond the machine travel: {body}");
+    let (code, body) = student.call("POST", "/api/mdi", json!({ "line": "G1 X10\nG1 X20" }));
+    assert_eq!(code, 400, "one line only: {body}");
+    let (code, body) = student.call("POST", "/api/mdi", json!({ "line": "G1 X10" }));
+    assert_eq!(code, 400, "no feed: {body}");
+    assert!(body["detail"].to_string().contains("1:"), "{body}");
+
+    // The E-stop ends a run at once; nothing moves on.
+    student.ok("POST", &format!("/api/programs/{id}/run"), Value::Null);
+    std::thread::sleep(Duration::from_millis(300));
+    student.ok("POST", "/api/estop", Value::Null);
+    let stopped = wait_program(&student, "stopped");
+    assert!(stopped["message"].as_str().unwrap().contains("emergency stop"), "{stopped}");
+    let x = student.wait_axis("x", Duration::from_secs(10), "halted", |a| a["moving"] == false);
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(student.axis("x")["position"], x["position"], "nothing moves after the E-stop");
+    student.ok("POST", "/api/reset", Value::Null);
+
+    let audited = |user: &str, action: &str, result: &str| {
+        audit(&admin, user, action).iter().any(|r| r["outcome"]["result"] == result)
+    };
+    assert!(audited("student", "command.program_override", "denied"));
+    assert!(audited("student", "command.program_override", "ok"));
+    assert!(audited("student", "command.program_single_block", "ok"));
+    assert!(audited("student", "command.mdi", "ok"));
+    assert!(audited("student", "command.mdi", "error"));
 }

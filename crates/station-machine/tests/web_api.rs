@@ -372,9 +372,7 @@ async fn program_upload_check_run_progress() {
     let id = r["program"]["id"].as_str().unwrap().to_string();
     let (st, e) = s.post0(&format!("/api/programs/{id}/run")).await;
     assert_eq!(st, StatusCode::OK, "{e}");
-    // The station's program service runs it to the end. (It plans the path but has no
-    // set-point sink to the gantry axes yet — `Programs::start` passes `None` — so the run
-    // is over at once and the axes stay where they are; hold/resume answer either way.)
+    // The station's program service runs it to the end on the gantry's axes.
     assert!(
         wait_for(120.0, || async { s.get("/api/programs/status").await.1["state"] == "done" }).await,
         "{}",

@@ -21,7 +21,7 @@ use crate::server::AppState;
 
 type ApiResult = Result<Json<Value>, ApiError>;
 
-fn ok() -> Json<Value> {
+pub(crate) fn ok() -> Json<Value> {
     Json(json!({ "ok": true }))
 }
 
@@ -239,7 +239,7 @@ pub async fn group_command(
 /// Runs a backend program function on a blocking thread: checking may take up to the
 /// backend's check budget, and the async runtime (E-stop, login, the WebSocket) never waits
 /// on program work.
-async fn blocking<T, F>(f: F) -> Result<T, BackendError>
+pub(crate) async fn blocking<T, F>(f: F) -> Result<T, BackendError>
 where
     T: Send + 'static,
     F: FnOnce() -> Result<T, BackendError> + Send + 'static,
@@ -281,7 +281,7 @@ fn demands_text(demands: &[(String, MotionDemand)]) -> String {
 }
 
 /// The audit target of a program: `station/name (id)`, with its demands when known.
-fn program_target(
+pub(crate) fn program_target(
     state: &AppState,
     id: &str,
     name: Option<&str>,
@@ -296,7 +296,13 @@ fn program_target(
 }
 
 /// Appends one audit entry about a program.
-fn audit_program(state: &AppState, auth: &Auth, action: &str, target: String, outcome: AuditOutcome) {
+pub(crate) fn audit_program(
+    state: &AppState,
+    auth: &Auth,
+    action: &str,
+    target: String,
+    outcome: AuditOutcome,
+) {
     let entry = AuditEntry {
         time: state.now(),
         user: auth.session.user.clone(),
@@ -310,7 +316,7 @@ fn audit_program(state: &AppState, auth: &Auth, action: &str, target: String, ou
 }
 
 /// The audit outcome of a backend refusal (`denied` for 403/404, `error` otherwise).
-fn refusal(e: &ApiError) -> AuditOutcome {
+pub(crate) fn refusal(e: &ApiError) -> AuditOutcome {
     let message = format!("{} {}: {}", e.status.as_u16(), e.error, e.detail_text());
     if matches!(e.status, StatusCode::FORBIDDEN | StatusCode::NOT_FOUND) {
         AuditOutcome::Denied(message)
@@ -321,7 +327,7 @@ fn refusal(e: &ApiError) -> AuditOutcome {
 
 /// Viewers neither check nor run programs (refused before any program work, audited as
 /// `action`).
-fn no_viewers(state: &AppState, auth: &Auth, action: &str, id: &str) -> Result<(), ApiError> {
+pub(crate) fn no_viewers(state: &AppState, auth: &Auth, action: &str, id: &str) -> Result<(), ApiError> {
     if auth.session.role == Role::Viewer {
         let e = ApiError::forbidden("viewers cannot check or run programs");
         audit_program(state, auth, action, program_target(state, id, None, &[]), refusal(&e));

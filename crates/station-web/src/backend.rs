@@ -337,6 +337,8 @@ pub enum RunState {
     Running,
     /// Feed hold.
     Held,
+    /// Single block: stopped after a block, waiting for cycle start (resume).
+    BlockStop,
     /// Finished normally.
     Done,
     /// Stopped by a user, an E-stop or the supervisor.
@@ -358,6 +360,38 @@ pub struct ProgramStatus {
     pub line_text: String,
     /// Why it stopped, if it did.
     pub message: Option<String>,
+    /// Tool position X, Y, Z, mm (the set-point sent to the gantry).
+    pub xyz: [f64; 3],
+    /// Executed path speed, mm/min (with the override).
+    pub feed: f64,
+    /// Feed override, percent (0-200; students at most 100).
+    pub override_percent: f64,
+    /// Single-block mode.
+    pub single_block: bool,
+}
+
+/// The tool path of a checked program, for the preview (machine mm, polyline).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProgramPreview {
+    /// X, Y, Z points, mm; arcs as chords.
+    pub points: Vec<[f64; 3]>,
+    /// Least distance between points, mm (a long program's preview is thinned).
+    pub spacing_mm: f64,
+    /// Rapid (true) or feed (false) move ending at each point.
+    pub rapid: Vec<bool>,
+}
+
+/// Points of the executed path of a run since a cursor.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ExecutedPathView {
+    /// The run (a new run starts a new path).
+    pub run: u64,
+    /// Cursor of the first point.
+    pub from: u64,
+    /// Cursor to ask from next.
+    pub next: u64,
+    /// X, Y, Z points, mm.
+    pub points: Vec<[f64; 3]>,
 }
 
 /// A traced signal.
@@ -547,6 +581,36 @@ pub trait MachineBackend: Send + Sync {
     fn stop_program(&self, caller: &Caller) -> Result<(), BackendError>;
     /// The runner's status.
     fn program_status(&self) -> ProgramStatus;
+    /// Feed override in percent for the running program and later runs (0-200; a student
+    /// at most 100: their programs were checked against the student limits at 100 %).
+    ///
+    /// # Errors
+    /// [`BackendError::Invalid`] outside 0-200, [`BackendError::Forbidden`] above 100 for a
+    /// student.
+    fn set_program_override(&self, caller: &Caller, percent: f64) -> Result<(), BackendError>;
+    /// Single-block mode: the program stops after each block until resumed (cycle start).
+    ///
+    /// # Errors
+    /// [`BackendError`].
+    fn set_single_block(&self, caller: &Caller, on: bool) -> Result<(), BackendError>;
+    /// The preview of a program `caller` may check (from its cached check).
+    ///
+    /// # Errors
+    /// As [`MachineBackend::check_program`].
+    fn program_preview(&self, caller: &Caller, id: &str) -> Result<ProgramPreview, BackendError>;
+    /// The executed path of run `run` from `cursor` on (another run: from its start).
+    fn executed_path(&self, run: u64, cursor: u64) -> ExecutedPathView;
+    /// Checks one MDI line as a program of one line (errors, per-axis demands).
+    ///
+    /// # Errors
+    /// [`BackendError::Invalid`] (empty, several lines, too long), as
+    /// [`MachineBackend::check_program`] otherwise.
+    fn check_mdi(&self, caller: &Caller, line: &str) -> Result<ProgramCheck, BackendError>;
+    /// Executes one MDI line on the machine (checked again, as a program).
+    ///
+    /// # Errors
+    /// As [`MachineBackend::run_program`].
+    fn run_mdi(&self, caller: &Caller, line: &str) -> Result<(), BackendError>;
     /// The traced signals.
     fn signals(&self) -> Vec<SignalView>;
     /// Samples after `cursor` (0: everything kept).

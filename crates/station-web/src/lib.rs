@@ -14,6 +14,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod api_cnc;
 pub mod api_lab;
 pub mod api_machine;
 pub mod assets;
@@ -27,9 +28,10 @@ pub mod server;
 pub mod ws;
 
 pub use backend::{
-    AxisAction, AxisLimits, AxisParameters, AxisView, BackendError, Caller, GroupAction, GroupKind,
-    GroupView, MachineBackend, PredictedReach, ProgramCheck, ProgramDiagnostic, ProgramInfo, ProgramStatus,
-    RobotScene, RunState, SafetyView, Sample, SampleBatch, SceneView, SignalView, TaskView,
+    AxisAction, AxisLimits, AxisParameters, AxisView, BackendError, Caller, ExecutedPathView, GroupAction,
+    GroupKind, GroupView, MachineBackend, PredictedReach, ProgramCheck, ProgramDiagnostic, ProgramInfo,
+    ProgramPreview, ProgramStatus, RobotScene, RunState, SafetyView, Sample, SampleBatch, SceneView,
+    SignalView, TaskView,
 };
 pub use clock::{Clock, OffsetClock, SystemClock};
 pub use error::ApiError;

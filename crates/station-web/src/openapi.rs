@@ -196,7 +196,43 @@ fn paths() -> Value {
     );
     add("/api/programs/status", "get", op("Program runner status", None, r("ProgramStatus"), false));
     add("/api/programs/hold", "post", op("Feed hold", None, ok_schema(), true));
-    add("/api/programs/resume", "post", op("Resume after hold", None, ok_schema(), true));
+    add(
+        "/api/programs/resume",
+        "post",
+        op("Resume after hold; cycle start after a single-block stop", None, ok_schema(), true),
+    );
+    add(
+        "/api/programs/override",
+        "post",
+        op("Feed override 0-200 % (students at most 100)", Some(r("OverrideRequest")), ok_schema(), true),
+    );
+    add(
+        "/api/programs/single-block",
+        "post",
+        op("Single block on/off", Some(r("SingleBlockRequest")), ok_schema(), true),
+    );
+    let mut path = op("The executed path since a cursor", None, r("ExecutedPath"), false);
+    set(
+        &mut path,
+        &["parameters"],
+        json!([{ "name": "run", "in": "query", "schema": { "type": "integer" } },
+               { "name": "cursor", "in": "query", "schema": { "type": "integer" } }]),
+    );
+    add("/api/programs/path", "get", path);
+    add(
+        "/api/programs/{id}/preview",
+        "get",
+        with_path_param(
+            op("Tool path of a checked program", None, r("ProgramPreview"), false),
+            "id",
+            "string",
+        ),
+    );
+    add(
+        "/api/mdi",
+        "post",
+        op("Check and execute one G-code line (MDI)", Some(r("MdiRequest")), ok_schema(), true),
+    );
     add("/api/programs/stop", "post", op("Stop the program", None, ok_schema(), true));
     add(
         "/api/programs/{id}/check",
@@ -346,8 +382,19 @@ fn schemas() -> Value {
             "errors": arr(json!({ "type": "object", "properties": { "line": num, "col": num, "message": s } })),
             "demands": arr(json!({})) } },
         "ProgramStatus": { "type": "object", "properties": {
-            "state": { "type": "string", "enum": ["idle", "running", "held", "done", "stopped"] },
-            "program": s, "progress": num, "line": num, "line_text": s, "message": s } },
+            "state": { "type": "string", "enum": ["idle", "running", "held", "block_stop", "done", "stopped"] },
+            "program": s, "progress": num, "line": num, "line_text": s, "message": s,
+            "xyz": { "type": "array", "items": num }, "feed": num, "override_percent": num,
+            "single_block": b } },
+        "OverrideRequest": { "type": "object", "required": ["percent"], "properties": { "percent": num } },
+        "SingleBlockRequest": { "type": "object", "required": ["on"], "properties": { "on": b } },
+        "MdiRequest": { "type": "object", "required": ["line"], "properties": { "line": s } },
+        "ProgramPreview": { "type": "object", "properties": {
+            "points": { "type": "array", "items": { "type": "array", "items": num } },
+            "rapid": { "type": "array", "items": b }, "spacing_mm": num } },
+        "ExecutedPath": { "type": "object", "properties": {
+            "run": num, "from": num, "next": num,
+            "points": { "type": "array", "items": { "type": "array", "items": num } } } },
         "BookRequest": { "type": "object", "required": ["start", "end"], "properties": {
             "start": num, "end": num, "user": s } },
         "Reservation": { "type": "object", "properties": {

@@ -17,7 +17,7 @@ use tokio::sync::{oneshot, watch};
 use crate::backend::MachineBackend;
 use crate::clock::{Clock, SystemClock};
 use crate::listener::{self, Limits};
-use crate::{api_lab, api_machine, assets, auth, openapi, ws};
+use crate::{api_cnc, api_lab, api_machine, assets, auth, openapi, ws};
 
 /// Server settings.
 #[derive(Clone)]
@@ -204,6 +204,11 @@ pub fn router(state: AppState) -> Router {
         .route("/api/programs/stop", post(api_machine::stop_program))
         .route("/api/programs/:id/check", post(api_machine::check_program))
         .route("/api/programs/:id/run", post(api_machine::run_program))
+        .route("/api/programs/:id/preview", get(api_cnc::preview))
+        .route("/api/programs/override", post(api_cnc::set_override))
+        .route("/api/programs/single-block", post(api_cnc::set_single_block))
+        .route("/api/programs/path", get(api_cnc::executed_path))
+        .route("/api/mdi", post(api_cnc::mdi))
         .route(
             "/api/programs/:id/publish",
             post(api_machine::publish_program).delete(api_machine::unpublish_program),
