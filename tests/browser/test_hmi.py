@@ -352,7 +352,7 @@ def step_add_student(t):
     assert page.locator("#new-password").input_value() == "", "the new user's password stays in the form"
 
 
-HOME_AXES = ["x", "y", "pan", "tilt", "linear2"]
+HOME_AXES = ["x", "y", "z", "pan", "tilt", "linear2"]  # x, y, z: the gantry programs run on
 
 
 def step_home(t):
@@ -545,20 +545,58 @@ def gantry(t):
     return tuple(t.api.get("/api/scene")["gantry"][0])
 
 
+def set_range(t, testid, value):
+    """Moves a slider as a user does: its value, then the input and change events."""
+    t.tid(testid).evaluate("(e, v) => { e.value = v; e.dispatchEvent(new Event('input')); "
+                           "e.dispatchEvent(new Event('change')); }", str(value))
+
+
+def dataset_number(page, testid, key):
+    return page.evaluate(f"() => Number(document.querySelector('[data-testid=\"{testid}\"]').dataset.{key})")
+
+
+def cnc_feeds(t):
+    """The traced executed feed (`cnc.feed`, mm/min) the station holds."""
+    names = [s["id"] for s in t.api.get("/api/signals")]
+    k = names.index("cnc.feed")
+    return [row["values"][k] for row in t.api.get("/api/samples?cursor=0")["samples"] if row["values"][k] is not None]
+
+
 def step_program(t):
     page = t.page
     t.tid("program-name").fill("hmi-long.ngc")
     t.tid("program-text").fill(LONG_PROGRAM)
     t.tid("program-upload").click()
     t.tid("program-errors").filter(has_text="no errors").wait_for(timeout=20000)
+    # The preview of the checked program: its six moves drawn.
+    page.wait_for_function("() => Number(document.getElementById('program-preview').dataset.points) >= 6",
+                           timeout=15000)
+    t.tid("pick-cnc.feed").check()
     p0 = gantry(t)
+    x0 = t.api.axis("x")["position"]
     t.tid("program-run").click()
     wait_until("the program running", lambda: t.api.program()["state"] == "running", 10)
     page.wait_for_function("() => Number(document.getElementById('program-percent').textContent) > 0 && "
                            "document.getElementById('program-state').textContent.startsWith('running')",
                            timeout=10000)
+    # The booked machine's gantry moves: its axes, and the scene drawn from them.
     wait_until("the gantry moving", lambda: gantry(t) != p0, 10)
+    wait_until("axis x moving", lambda: t.api.axis("x")["position"] != x0, 10)
+    # The executed path drawn over the preview, growing.
+    page.wait_for_function("() => Number(document.getElementById('program-preview').dataset.executed) > 3",
+                           timeout=15000)
+    # The feed override: 50 % halves the executed feed, in the status and in the trace.
+    wait_until("the feed at 1000 mm/min", lambda: abs(t.api.program()["feed"] - 1000) < 5, 20)
+    set_range(t, "program-override", 50)
+    wait_until("the override at 50 %", lambda: t.api.program()["override_percent"] == 50, 10)
+    wait_until("the feed at 500 mm/min", lambda: abs(t.api.program()["feed"] - 500) < 5, 20)
+    page.wait_for_function("() => Math.abs(Number(document.getElementById('program-feed').textContent) - 500) < 5",
+                           timeout=10000)
+    wait_until("both feeds in the trace", lambda: (f := cnc_feeds(t)) and any(abs(v - 1000) < 5 for v in f)
+               and any(abs(v - 500) < 5 for v in f), 10)
     shot(page, "06-program-running")
+    set_range(t, "program-override", 100)
+    wait_until("the override back at 100 %", lambda: t.api.program()["override_percent"] == 100, 10)
     t.tid("program-hold").click()
     wait_until("the program held", lambda: t.api.program()["state"] == "held", 10)
     t.tid("program-state").filter(has_text="held").wait_for(timeout=15000)
@@ -572,18 +610,44 @@ def step_program(t):
     t.tid("program-stop").click()
     wait_until("the program stopped", lambda: t.api.program()["state"] == "stopped", 10)
     t.tid("program-state").filter(has_text="stopped").wait_for(timeout=15000)
-    # A short one to its end.
+    # Single block: a short one, stopping after each block until Cycle start.
     t.tid("program-name").fill("hmi-short.ngc")
     t.tid("program-text").fill(SHORT_PROGRAM)
     t.tid("program-upload").click()
     t.tid("program-errors").filter(has_text="no errors").wait_for(timeout=20000)
+    t.tid("program-single-block").check()
+    wait_until("single block on", lambda: t.api.program()["single_block"], 10)
     t.tid("program-run").click()
-    # A liveness bound: beside CPU hogs the whole demo and Chromium share two cores.
-    wait_until("the short program done",
-               lambda: (p := t.api.program())["state"] == "done" and p["program"] == "hmi-short.ngc", 90)
+    stops = 0
+    while True:
+        # A liveness bound: beside CPU hogs the whole demo and Chromium share two cores.
+        wait_until("a block stop or the end",
+                   lambda: (p := t.api.program())["program"] == "hmi-short.ngc"
+                   and p["state"] in ("block_stop", "done"), 60)
+        if t.api.program()["state"] == "done":
+            break
+        stops += 1
+        t.tid("program-state").filter(has_text="block_stop").wait_for(timeout=15000)
+        wait_until("the gantry at rest at the block stop", lambda: at_rest(t.api.axis("x")), 10)
+        p2 = gantry(t)
+        page.wait_for_timeout(500)
+        assert gantry(t) == p2 and t.api.program()["state"] == "block_stop", "single block did not stop"
+        assert stops <= 5, "more block stops than blocks"
+        t.tid("program-resume").click()
+        wait_until("the stop left", lambda: t.api.program()["state"] != "block_stop" or gantry(t) != p2, 10)
+    assert stops >= 2, f"{stops} block stops for three moves"
+    t.tid("program-single-block").uncheck()
+    wait_until("single block off", lambda: not t.api.program()["single_block"], 10)
     page.wait_for_function("() => document.getElementById('program-state').textContent.startsWith('done') && "
                            "document.getElementById('program-percent').textContent === '100'", timeout=10000)
     shot(page, "07-program-done")
+    # MDI: one line, executed on the gantry.
+    t.tid("mdi-line").fill("G1 X20 Y10 F1200")
+    t.tid("mdi-run").click()
+    wait_until("the MDI line done at X 20 Y 10",
+               lambda: (p := t.api.program())["program"] == "MDI" and p["state"] == "done"
+               and near(t.api.axis("x")["position"], 0.02, 1e-4) and near(t.api.axis("y")["position"], 0.01, 1e-4),
+               60)
 
 
 def step_estop_ack_reset(t):
@@ -723,7 +787,7 @@ STEPS = [
     ("robot map go-to", step_robot_map),
     ("pan-tilt target", step_pan_tilt),
     ("arm joints", step_arm),
-    ("program upload/run/hold/resume/stop", step_program),
+    ("program preview/run/override/hold/resume/stop, single block, MDI", step_program),
     ("E-stop, alarm ack, reset", step_estop_ack_reset),
     ("juggler program and supervisor diagnosis", step_juggler),
     ("audit log", step_audit),

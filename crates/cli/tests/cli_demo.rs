@@ -65,8 +65,11 @@ fn demo_serves_the_whole_cell_moves_axes_runs_a_program_and_stops_everything() {
     for id in ["wheel1", "pan", "tilt", "joint1", "linear1", "thrower", "x", "y", "z"] {
         assert!(ids.contains(&id), "{id} missing from {ids:?}");
     }
-    // Home and move a PS1A module and a gantry axis; read the positions back.
-    for (axis, target, speed) in [("linear1", 0.02, 0.01), ("x", 0.1, 0.1)] {
+    // Home and move a PS1A module and the gantry's axes (programs run on a homed gantry);
+    // read the positions back.
+    for (axis, target, speed) in
+        [("linear1", 0.02, 0.01), ("x", 0.1, 0.1), ("y", 0.01, 0.1), ("z", 0.01, 0.05)]
+    {
         // The station serves before every device has connected (absent devices are alarmed and
         // connected when they answer): a device still connecting refuses motion with 409.
         let end = Instant::now() + Duration::from_secs(60);

@@ -3,8 +3,8 @@
 //! Each cycle, every mapped axis whose set-point moved gets a `MoveAbsolute` to the new
 //! position with the set-point speed as the profile velocity and its CNC acceleration limit
 //! as the profile acceleration, both converted to SI with the axis' factor (0.001 m per mm,
-//! π/180 rad per degree); a set-point at rest whose target still moved takes the axis's own
-//! speed. This suits drives that follow a stream of absolute targets
+//! π/180 rad per degree); when the path comes to rest, the target is sent once more with
+//! the axis's own speed (the last commands of a deceleration carry near-zero speeds). This suits drives that follow a stream of absolute targets
 //! (position-increment or cyclic modes); the drive's own interpolation fills the cycle.
 
 use crate::config::Config;
@@ -43,6 +43,8 @@ struct Mapped {
     axis: Box<dyn Axis>,
     si_per_unit: f64,
     last: Option<f64>,
+    /// The last command sent was the one at rest (the axis's own profile).
+    settled: bool,
 }
 
 /// A set of real axes fed from the executor's set-points.
@@ -67,7 +69,7 @@ impl<const N: usize> AxisSink<N> {
         if !(si_per_unit.is_finite() && si_per_unit > 0.0) {
             return Err(SinkError::Factor(si_per_unit));
         }
-        self.axes.push(Mapped { index, axis, si_per_unit, last: None });
+        self.axes.push(Mapped { index, axis, si_per_unit, last: None, settled: false });
         Ok(())
     }
 
@@ -80,17 +82,20 @@ impl<const N: usize> AxisSink<N> {
             else {
                 continue;
             };
-            if m.last.is_some_and(|l| (l - p).abs() <= self.deadband) {
+            let k = m.si_per_unit;
+            let speed = v.abs() * k;
+            let at_rest = speed <= f64::EPSILON;
+            // Unchanged targets are not re-sent, except once when the path comes to rest:
+            // the commands of a deceleration carry ever smaller speeds, and the last one would
+            // leave the axis crawling the last micrometres; at rest, the axis finishes at its
+            // own speed.
+            if m.last.is_some_and(|l| (l - p).abs() <= self.deadband) && (m.settled || !at_rest) {
                 continue;
             }
-            let k = m.si_per_unit;
-            // A set-point at rest (the path's last, or a stop) with the target still moved:
-            // the axis's own profile, not a crawl at a near-zero speed.
-            let speed = v.abs() * k;
             let command = AxisCommand::MoveAbsolute {
                 target: p * k,
                 profile: MotionProfile {
-                    velocity: (speed > f64::EPSILON).then_some(speed),
+                    velocity: (!at_rest).then_some(speed),
                     acceleration: Some(a * k),
                     deceleration: Some(a * k),
                 },
@@ -101,6 +106,7 @@ impl<const N: usize> AxisSink<N> {
                 source,
             })?;
             m.last = Some(*p);
+            m.settled = at_rest;
             sent += 1;
         }
         Ok(sent)
@@ -118,6 +124,7 @@ impl<const N: usize> AxisSink<N> {
                 });
             }
             m.last = None;
+            m.settled = false;
         }
         first.map_or(Ok(()), Err)
     }
@@ -204,9 +211,16 @@ mod tests {
             AxisCommand::MoveAbsolute { target, profile } => {
                 assert!((target - 0.010).abs() < 1e-12); // 10 mm in metres
                 assert_eq!(profile.acceleration, Some(2.0)); // 2000 mm/s² = 2 m/s²
+                                                             // At rest: the target once more at the axis's own speed, not a crawl.
+                assert_eq!(profile.velocity, None);
             }
             other => panic!("{other:?}"),
         }
+        let settles = log
+            .iter()
+            .filter(|c| matches!(c, AxisCommand::MoveAbsolute { profile, .. } if profile.velocity.is_none()))
+            .count();
+        assert_eq!(settles, 1, "one settling command when the path comes to rest");
         let mid = &log[100];
         let AxisCommand::MoveAbsolute { profile, .. } = mid else { panic!() };
         assert!((profile.velocity.unwrap() - 0.050).abs() < 1e-9); // cruising at 50 mm/s

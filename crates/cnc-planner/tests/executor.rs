@@ -396,3 +396,46 @@ fn braking_looks_through_asynchronous_markers() {
     assert!(close(sps.last().unwrap().positions, [40.5, 0.0, 0.0], 1e-9));
     assert_limits(&positions([0.0; 3], &sps));
 }
+
+#[test]
+fn single_block_stops_at_a_reversal_and_before_the_markers_ending_a_block() {
+    // A reversal is an exact stop (a marker after the block's motion): the block stop still
+    // comes at the end of that block, not one block later. Likewise before an M-function.
+    for (start, pts) in [
+        ([50.0, 0.0, 0.0], [[0.0, 0.0, 0.0], [50.0, 20.0, 0.0], [0.0, 0.0, 0.0]]),
+        ([0.0, 0.0, 0.0], [[50.0, 0.0, 0.0], [0.0, 0.0, 0.0], [50.0, 20.0, 0.0]]),
+        ([0.0, 0.0, 0.0], [[50.0, 0.0, 0.0], [50.0, 20.0, 0.0], [0.0, 0.0, 0.0]]),
+    ] {
+        for with_m in [false, true] {
+            let mut ex = Executor::new(config(), start).unwrap();
+            ex.set_single_block(true);
+            for (k, p) in pts.iter().enumerate() {
+                ex.push(k as u32 + 1, line(*p, 50.0)).unwrap();
+                if with_m && k == 0 {
+                    ex.push(1, PathItem::MFunction { number: 100, sync: false }).unwrap();
+                }
+            }
+            ex.finish();
+            let mut stops = Vec::new();
+            let sps = run_until(
+                &mut ex,
+                100_000,
+                |_, ex, sp| {
+                    while let Some(e) = ex.poll_event() {
+                        if let Event::BlockStop { line } = e {
+                            stops.push((line, sp.positions));
+                            ex.cycle_start().unwrap();
+                        }
+                    }
+                },
+                idle,
+            );
+            assert_eq!(
+                stops.iter().map(|s| s.0).collect::<Vec<_>>(),
+                vec![1, 2],
+                "{start:?} {pts:?} M {with_m}"
+            );
+            assert!(close(sps.last().unwrap().positions, pts[2], 1e-9));
+        }
+    }
+}

@@ -23,7 +23,7 @@ pub mod technology;
 
 pub use executed::{ExecutedPath, PathBatch};
 pub use runner::{Limits3, ProgramRun, RunError, RunReport, RunStatus};
-pub use service::{OverrideError, ProgramService, ServiceState, ServiceStatus, SetpointSink};
+pub use service::{OverrideError, ProgramService, ServiceState, ServiceStatus, SetpointSink, StatusReader};
 pub use technology::{DrillingTechnology, NoTechnology, Technology, TechnologyError};
 
 /// Number of CNC axes planned (X, Y, Z).

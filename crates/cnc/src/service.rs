@@ -108,6 +108,17 @@ enum Cmd {
 /// run with its message (on doubt about motion, stop).
 pub type SetpointSink = Box<dyn FnMut(&Setpoint<AXES>) -> Result<(), String> + Send>;
 
+/// Reads a [`ProgramService`]'s status from another thread.
+#[derive(Clone)]
+pub struct StatusReader(Arc<Mutex<ServiceStatus>>);
+
+impl StatusReader {
+    /// The executed path speed, mm/min (0 at rest).
+    pub fn feed(&self) -> f64 {
+        self.0.lock().unwrap_or_else(PoisonError::into_inner).feed
+    }
+}
+
 /// A feed override outside 0..=200 %.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("feed override {0} % is outside 0..=200 %")]
@@ -216,6 +227,11 @@ impl ProgramService {
     /// The latest status.
     pub fn status(&self) -> ServiceStatus {
         self.status.lock().unwrap_or_else(PoisonError::into_inner).clone()
+    }
+
+    /// A reader of the status for another thread (e.g. a poller tracing the feed).
+    pub fn status_reader(&self) -> StatusReader {
+        StatusReader(Arc::clone(&self.status))
     }
 }
 

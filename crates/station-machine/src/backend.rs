@@ -687,6 +687,9 @@ impl MachineBackend for StationMachine {
             let rec = lock(rec);
             v.extend(rec.signals().iter().map(|s| SignalView { id: s.name.clone(), unit: s.unit.clone() }));
         }
+        if self.shared.cnc_status.get().is_some() {
+            v.push(SignalView { id: "cnc.feed".into(), unit: "mm/min".into() });
+        }
         v
     }
 

@@ -196,6 +196,9 @@ pub(crate) struct Shared {
     /// The omni group's pose estimate (wheel odometry), if the cell has one.
     pub(crate) robot: Option<Mutex<robot::RobotEstimate>>,
     pub(crate) estop: AtomicBool,
+    /// The CNC runner's status, for the traced feed (`cnc.feed`, mm/min) of a cell with a
+    /// gantry.
+    pub(crate) cnc_status: std::sync::OnceLock<motus_cnc::StatusReader>,
     /// E-stop resets in progress whose release the juggler's supervisor has not yet decided
     /// (shown as the E-stop still held, see `Backend::reset`).
     pub(crate) estop_releasing: std::sync::atomic::AtomicUsize,
@@ -317,6 +320,7 @@ impl StationMachine {
             robot_path: Mutex::new(VecDeque::new()),
             robot,
             estop: AtomicBool::new(false),
+            cnc_status: std::sync::OnceLock::new(),
             estop_releasing: std::sync::atomic::AtomicUsize::new(0),
             estop_owners: Mutex::new(stops::EStopOwners::default()),
             jogs: Mutex::new(jog::JogLeases::default()),
@@ -325,6 +329,11 @@ impl StationMachine {
             epoch: Instant::now(),
             stop: AtomicBool::new(false),
         });
+        // The program runner first: the poller traces its feed from the first row on.
+        let programs = programs::Programs::start(cell, &shared, options.program_checks)?;
+        if gantry::gantry_axes(&shared).is_some() {
+            let _ = shared.cnc_status.set(programs.service.status_reader());
+        }
         let mut sinks: Vec<Arc<dyn AlarmSink>> = vec![alarms];
         sinks.extend(options.alarm_sink.clone());
         let sink: Arc<dyn AlarmSink> = Arc::new(alarms::Tee(sinks));
@@ -367,7 +376,6 @@ impl StationMachine {
                 }
             })?);
         }
-        let programs = programs::Programs::start(cell, &shared, options.program_checks)?;
         Ok(Self { shared, programs, camera_url: options.camera_url, quick_stoppers, threads, tasks })
     }
 

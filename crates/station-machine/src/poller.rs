@@ -56,6 +56,9 @@ pub(crate) fn run(s: &Shared, period: Duration) {
             let rec = lock(rec);
             row.extend(rec.signals().iter().map(|sig| rec.latest(sig.id).map_or(f64::NAN, |x| x.value)));
         }
+        if let Some(cnc) = s.cnc_status.get() {
+            row.push(cnc.feed());
+        }
         {
             let t = s.epoch.elapsed().as_secs_f64();
             let mut smp = lock(&s.samples);

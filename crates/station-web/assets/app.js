@@ -11,6 +11,7 @@ function resetState() {
     session: null, ws: null, signals: [], picked: new Set(['x.position', 'y.position']),
     plot: [], axes: [], axisIds: '', groups: [], program: null, frames: 0, lastRateAt: performance.now(),
     slot: null, reservations: [], lastFrame: null, jogTimers: {}, alarmKey: null,
+    preview: null, exec: { run: 0, next: 0, points: [], busy: false, at: 0 }, overrideBusy: false,
   });
 }
 resetState();
@@ -95,10 +96,11 @@ function clearPanels() {
   $('safe-text').textContent = '?'; $('diagnosis').textContent = '-'; $('juggler-current').textContent = '-';
   $('program-state').textContent = 'idle'; $('program-percent').textContent = '0'; $('program-line').textContent = '0';
   $('program-progress').value = 0; $('frame-rate').textContent = '0';
-  for (const id of ['plot', 'scene', 'robot-map']) { const c = $(id); c.getContext('2d').clearRect(0, 0, c.width, c.height); }
+  $('program-feed').textContent = '0';
+  for (const id of ['plot', 'scene', 'robot-map', 'program-preview']) { const c = $(id); c.getContext('2d').clearRect(0, 0, c.width, c.height); }
   for (const id of ['robot-panel', 'pantilt-panel', 'arm-panel', 'juggler-box']) $(id).hidden = true;
   // What the previous user typed goes too (their program, the rules draft, a new password).
-  for (const id of ['program-name', 'program-text', 'program-file', 'jog-fraction', 'rules-text', 'new-user', 'new-password']) {
+  for (const id of ['program-name', 'program-text', 'program-file', 'jog-fraction', 'rules-text', 'new-user', 'new-password', 'mdi-line']) {
     const e = $(id); e.value = e.defaultValue || '';
   }
 }
@@ -128,7 +130,7 @@ function canCommand() {
 
 function applyMode() {
   const can = canCommand();
-  document.querySelectorAll('button.cmd, #axes-rows button, #axes-rows input, #robot-map, #pantilt-groups input, #arm-sliders input')
+  document.querySelectorAll('button.cmd, input.cmd, #axes-rows button, #axes-rows input, #robot-map, #pantilt-groups input, #arm-sliders input')
     .forEach((b) => { if (b.tagName === 'CANVAS') b.dataset.disabled = can ? '' : '1'; else b.disabled = !can; });
   $('estop-btn').disabled = !S.session || S.session.role === 'viewer';
   const note = $('mode-note');
@@ -256,6 +258,52 @@ function renderProgram(p) {
   $('program-percent').textContent = Math.round(p.progress * 100);
   $('program-line').textContent = p.line;
   $('program-line-text').textContent = p.line_text;
+  $('program-feed').textContent = Math.round(p.feed);
+  // The station's settings, unless the user is changing them right now.
+  if (!S.overrideBusy && document.activeElement !== $('program-override')) {
+    $('program-override').value = p.override_percent; $('program-override-value').textContent = Math.round(p.override_percent);
+  }
+  $('program-single-block').checked = p.single_block;
+  pollExecuted(p);
+}
+
+// The executed path, fetched by cursor while a program runs (and once after it ended).
+async function pollExecuted(p) {
+  const active = ['running', 'held', 'block_stop'].includes(p.state);
+  const now = performance.now();
+  if (S.exec.busy || (!active && S.exec.settled) || now - S.exec.at < 200) return;
+  S.exec.busy = true; S.exec.at = now;
+  try {
+    const b = await api('GET', `/api/programs/path?run=${S.exec.run}&cursor=${S.exec.next}`);
+    if (b.run !== S.exec.run) S.exec.points = [];
+    S.exec.run = b.run; S.exec.next = b.next; S.exec.points.push(...b.points);
+    S.exec.settled = !active && b.points.length === 0;
+    drawPreview(p.xyz);
+  } catch (_) { /* the next frame asks again */ } finally { S.exec.busy = false; }
+}
+
+async function loadPreview(id) {
+  try { S.preview = (await api('GET', `/api/programs/${id}/preview`)).points; } catch (e) { S.preview = null; say(e.message, true); }
+  drawPreview(null);
+}
+
+// Top view (X right, Y up) of the checked program and of the executed path, scaled to fit.
+function drawPreview(tool) {
+  const c = $('program-preview'); const g = c.getContext('2d');
+  g.clearRect(0, 0, c.width, c.height);
+  const prev = S.preview || []; const done = S.exec.points;
+  c.dataset.points = prev.length; c.dataset.executed = done.length;
+  const all = prev.concat(done); if (!all.length) return;
+  let [x0, y0, x1, y1] = [Infinity, Infinity, -Infinity, -Infinity];
+  for (const [x, y] of all) { x0 = Math.min(x0, x); y0 = Math.min(y0, y); x1 = Math.max(x1, x); y1 = Math.max(y1, y); }
+  const k = Math.min((c.width - 20) / Math.max(x1 - x0, 1e-3), (c.height - 20) / Math.max(y1 - y0, 1e-3));
+  const X = (x) => 10 + (x - x0) * k, Y = (y) => c.height - 10 - (y - y0) * k;
+  const line = (pts, color, width) => {
+    g.strokeStyle = color; g.lineWidth = width; g.beginPath();
+    pts.forEach(([x, y], i) => (i ? g.lineTo(X(x), Y(y)) : g.moveTo(X(x), Y(y)))); g.stroke();
+  };
+  line(prev, '#999', 1); line(done, '#d62728', 2);
+  if (tool) { g.fillStyle = '#1f77b4'; g.fillRect(X(tool[0]) - 3, Y(tool[1]) - 3, 6, 6); }
 }
 
 function showCheck(check) {
@@ -542,10 +590,23 @@ function wire() {
   });
   $('program-upload').addEventListener('click', async () => {
     const r = await act('Upload', () => api('POST', '/api/programs', { name: $('program-name').value, text: $('program-text').value }));
-    if (r) { S.program = r.program.id; showCheck(r.check); }
+    if (r) { S.program = r.program.id; showCheck(r.check); loadPreview(S.program); }
+  });
+  $('program-override').addEventListener('input', () => { $('program-override-value').textContent = $('program-override').value; });
+  $('program-override').addEventListener('change', async () => {
+    S.overrideBusy = true;
+    try { await act('Override', () => api('POST', '/api/programs/override', { percent: Number($('program-override').value) })); }
+    finally { S.overrideBusy = false; }
+  });
+  $('program-single-block').addEventListener('change', () =>
+    act('Single block', () => api('POST', '/api/programs/single-block', { on: $('program-single-block').checked })));
+  $('mdi-run').addEventListener('click', () => {
+    S.exec.settled = false;
+    act('MDI', () => api('POST', '/api/mdi', { line: $('mdi-line').value })).catch(() => {});
   });
   $('program-run').addEventListener('click', () => {
     if (!S.program) { say('Upload a program first', true); return; }
+    S.exec.settled = false;
     act('Run', () => api('POST', `/api/programs/${S.program}/run`)).catch(() => {});
   });
   $('program-hold').addEventListener('click', () => act('Hold', () => api('POST', '/api/programs/hold')));

@@ -189,8 +189,12 @@ impl<const N: usize> Executor<N> {
         for j in self.cur + 1..len {
             let Some(q) = self.piece(j) else { return };
             if q.block != prev_block && dist > SNAP && self.v * self.v <= 2.0 * amin * dist {
-                let end = j - 1;
-                // A stop inside a marker chain is placed before the first marker.
+                // A block that ends in markers (an exact stop at a reversal, M-functions, a
+                // dwell) stops before the first of them: after its last motion piece.
+                let mut end = j - 1;
+                while end > self.cur && self.piece(end).is_some_and(|e| e.marker().is_some()) {
+                    end -= 1;
+                }
                 if self.piece(end).is_some_and(|e| e.marker().is_none()) {
                     self.planner.set_stop_after(end, true);
                     self.sb_stop = Some(self.global(end));
