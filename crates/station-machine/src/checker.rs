@@ -247,20 +247,18 @@ fn arc_extremes(s: (f64, f64), e: (f64, f64), rotation: i32) -> Vec<(usize, f64)
 }
 
 /// Interprets `text` to its end (or the budget) and measures it; `cancel` stops it.
+/// `machine`: the interpreter settings the program will run with (tool table, step limit).
 pub(crate) fn analyse(
     text: &str,
     gantry: Option<&[GantryAxis]>,
-    max_steps: u64,
+    machine: &InterpreterConfig,
     budget: Duration,
     cancel: &CancelFlag,
 ) -> Analysis {
     let started = Instant::now();
-    let config = InterpreterConfig {
-        require_program_end: false,
-        max_steps,
-        cancel: Some(cancel.clone()),
-        ..InterpreterConfig::default()
-    };
+    let max_steps = machine.max_steps;
+    let config =
+        InterpreterConfig { require_program_end: false, cancel: Some(cancel.clone()), ..machine.clone() };
     let no_gantry: [GantryAxis; 0] = [];
     let mut acc = Accumulator::new(gantry.unwrap_or(&no_gantry));
     let mut errors = Vec::new();
@@ -342,7 +340,8 @@ struct Shared {
     stopping: std::sync::atomic::AtomicBool,
     gantry: Option<Vec<GantryAxis>>,
     budget: Duration,
-    max_steps: u64,
+    /// The interpreter settings programs run with (its step limit bounds a check).
+    config: InterpreterConfig,
     capacity: usize,
     /// Callers waiting for a result (each holds a thread of the web's blocking pool).
     waiters: std::sync::atomic::AtomicUsize,
@@ -374,11 +373,13 @@ pub(crate) struct Checker {
 }
 
 impl Checker {
-    /// Starts `options.workers` workers and the watchdog.
+    /// Starts `options.workers` workers and the watchdog; checks interpret with `config`
+    /// (the machine's tool table...) and `options.max_steps`.
     pub(crate) fn start(
         options: ProgramCheckOptions,
         budget: Duration,
         gantry: Option<Vec<GantryAxis>>,
+        config: InterpreterConfig,
     ) -> std::io::Result<Self> {
         let (tx, rx) = mpsc::sync_channel::<Job>(options.queue);
         let rx = Arc::new(Mutex::new(rx));
@@ -389,7 +390,7 @@ impl Checker {
             stopping: std::sync::atomic::AtomicBool::new(false),
             gantry,
             budget,
-            max_steps: options.max_steps,
+            config: InterpreterConfig { max_steps: options.max_steps, ..config },
             capacity: options.capacity(),
             waiters: std::sync::atomic::AtomicUsize::new(0),
         });
@@ -491,7 +492,7 @@ fn worker(rx: &Mutex<Receiver<Job>>, shared: &Shared) {
         lock(&shared.deadlines).push((deadline, job.cancel.clone()));
         shared.wake.notify_all();
         let analysis =
-            analyse(&job.text, shared.gantry.as_deref(), shared.max_steps, shared.budget, &job.cancel);
+            analyse(&job.text, shared.gantry.as_deref(), &shared.config, shared.budget, &job.cancel);
         tracing::info!(
             program = %job.key.0,
             steps = analysis.steps,
@@ -527,6 +528,10 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
     use super::*;
 
+    fn steps(max_steps: u64) -> InterpreterConfig {
+        InterpreterConfig { max_steps, ..InterpreterConfig::default() }
+    }
+
     fn gantry() -> Vec<GantryAxis> {
         ["x", "y", "z"]
             .iter()
@@ -540,7 +545,7 @@ mod tests {
     }
 
     fn run(text: &str) -> Analysis {
-        analyse(text, Some(&gantry()), 1_000_000, Duration::from_secs(5), &CancelFlag::new())
+        analyse(text, Some(&gantry()), &steps(1_000_000), Duration::from_secs(5), &CancelFlag::new())
     }
 
     fn extent<'a>(a: &'a Analysis, axis: &str) -> &'a Extent {
@@ -595,16 +600,17 @@ mod tests {
         let a = run("G21\nG1 X1 F10\nQ7\nM2\n");
         assert_eq!((a.errors[0].line, a.errors[0].col), (3, 1), "{:?}", a.errors);
         let two = &gantry()[..2];
-        let a = analyse("G1 X1 Z5 F10\n", Some(two), 1000, Duration::from_secs(1), &CancelFlag::new());
+        let a =
+            analyse("G1 X1 Z5 F10\n", Some(two), &steps(1000), Duration::from_secs(1), &CancelFlag::new());
         assert!(a.errors.iter().any(|e| e.line == 1 && e.message.contains("moves Z")), "{:?}", a.errors);
-        let a = analyse("G1 X1 F10\n", None, 1000, Duration::from_secs(1), &CancelFlag::new());
+        let a = analyse("G1 X1 F10\n", None, &steps(1000), Duration::from_secs(1), &CancelFlag::new());
         assert!(a.errors[0].message.contains("no gantry"), "{:?}", a.errors);
     }
 
     #[test]
     fn the_step_budget_ends_an_endless_loop_with_a_clear_error() {
         let text = "#1 = 0\no100 while [1]\n#1 = [#1 + 1]\no100 endwhile\nM2\n";
-        let a = analyse(text, Some(&gantry()), 10_000, Duration::from_secs(3), &CancelFlag::new());
+        let a = analyse(text, Some(&gantry()), &steps(10_000), Duration::from_secs(3), &CancelFlag::new());
         let e = &a.errors[0];
         assert!(e.message.starts_with("check stopped after "), "{e:?}");
         assert!(e.message.contains("10000 lines"), "{e:?}");
@@ -615,7 +621,8 @@ mod tests {
     fn the_pool_refuses_beyond_its_capacity_and_cancels_at_the_budget() {
         let opts = ProgramCheckOptions { workers: 1, queue: 1, time_budget: None, max_steps: u64::MAX };
         let budget = Duration::from_millis(400);
-        let checker = Arc::new(Checker::start(opts, budget, Some(gantry())).unwrap());
+        let checker =
+            Arc::new(Checker::start(opts, budget, Some(gantry()), InterpreterConfig::default()).unwrap());
         // Endless programs, one after the other: the worker takes the first, the queue holds
         // the second, the third is refused at once (or the second, if the worker has not
         // taken the first yet).

@@ -63,6 +63,24 @@ fn gantry(cell: &Cell) -> Option<(Vec<GantryAxis>, Limits3)> {
     Some((axes, limits))
 }
 
+/// The cell's `[[tool]]` table as the interpreter's (the number is the tool's place: the
+/// changer is not random).
+fn tool_table(cell: &Cell) -> Vec<motus_gcode::Tool> {
+    cell.tools
+        .iter()
+        .map(|t| motus_gcode::Tool {
+            number: t.number,
+            pocket: t.number,
+            offset: [0.0, 0.0, t.length_mm, 0.0, 0.0, 0.0],
+            diameter: t.diameter_mm,
+            front_angle: 0.0,
+            back_angle: 0.0,
+            orientation: 0,
+            comment: t.comment.clone(),
+        })
+        .collect()
+}
+
 impl Programs {
     pub(crate) fn start(
         cell: &Cell,
@@ -72,13 +90,18 @@ impl Programs {
         let gantry = gantry(cell);
         let limits = gantry.as_ref().map_or_else(Limits3::default, |(_, l)| *l);
         let budget = options.time_budget.unwrap_or(cell.station.program_check_time);
-        let config = InterpreterConfig { max_steps: options.max_steps, ..InterpreterConfig::default() };
+        // One set of interpreter settings for the check and the run: the cell's tool table.
+        let config = InterpreterConfig {
+            max_steps: options.max_steps,
+            tools: tool_table(cell),
+            ..InterpreterConfig::default()
+        };
         Ok(Self {
             store: Mutex::new(BTreeMap::new()),
             // The booked machine's gantry follows every set-point.
-            service: ProgramService::start(limits, config, crate::gantry::sink(shared, &limits))?,
+            service: ProgramService::start(limits, config.clone(), crate::gantry::sink(shared, &limits))?,
             running: Mutex::new(None),
-            checker: Checker::start(options, budget, gantry.map(|(g, _)| g))?,
+            checker: Checker::start(options, budget, gantry.map(|(g, _)| g), config)?,
             versions: AtomicU64::new(1),
         })
     }

@@ -547,3 +547,28 @@ fn the_runner_drives_the_gantry_with_override_single_block_mdi_preview_and_path(
     assert!(audited("student", "command.mdi", "ok"));
     assert!(audited("student", "command.mdi", "error"));
 }
+
+/// The cell's tool table serves the station's programs (T, M6, G43 H): the demo's drilling
+/// program checks and runs on the gantry, its Z net of the drill's 20 mm; a tool the table
+/// does not have is refused at its line.
+#[test]
+fn programs_use_the_cells_tool_table() {
+    let _serial = serial();
+    let st = common::station();
+    let admin = Client::login(&st.addr, "admin", "admin-password-1");
+    home_gantry(&admin);
+    let drill = std::fs::read_to_string(st.dir.path().join("programs/drill-plate.ngc")).unwrap();
+    let (id, check) = upload(&admin, "drill-plate.ngc", &drill);
+    assert_eq!(check["errors"], json!([]), "{check}");
+    let z = check["demands"].as_array().unwrap().iter().find(|d| d[0] == "z").unwrap()[1].clone();
+    // Z-5 of G54 (60 mm up) with the 20 mm drill: the spindle nose at 75 mm; Z10 at 90 mm.
+    let [lo, hi]: [f64; 2] = serde_json::from_value(z["range"].clone()).unwrap();
+    assert!((lo - 0.075).abs() < 1e-9 && (hi - 0.090).abs() < 1e-9, "{z}");
+    admin.ok("POST", &format!("/api/programs/{id}/run"), Value::Null);
+    wait_program(&admin, "done");
+    let z = admin.wait_axis("z", Duration::from_secs(10), "still", |a| a["moving"] == false);
+    assert!((z["position"].as_f64().unwrap() - 0.090).abs() < 1e-4, "{z}");
+    let (_, check) = upload(&admin, "t9.ngc", "G21 G90\nT9 M6\nM2\n");
+    assert_eq!(check["errors"][0]["line"], 2, "{check}");
+    assert!(check["errors"][0]["message"].as_str().unwrap().contains("tool 9 not found"), "{check}");
+}

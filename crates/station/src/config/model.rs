@@ -29,6 +29,8 @@ pub struct Cell {
     pub tasks: Vec<TaskConfig>,
     /// `[[program]]`, in file order.
     pub programs: Vec<Program>,
+    /// `[[tool]]`: the CNC's tool table (T, M6, G43 H, G41/G42 D), in file order.
+    pub tools: Vec<ToolConfig>,
 }
 
 /// One task class: every task with the same period runs on one thread.
@@ -444,6 +446,20 @@ pub struct TaskConfig {
     pub program: Option<String>,
     /// Consecutive overruns before the class degrades.
     pub overrun_limit: u32,
+}
+
+/// `[[tool]]`: one tool of the CNC's tool table (a non-random changer: the number is its
+/// place).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToolConfig {
+    /// T number, 1-99999, unique.
+    pub number: u32,
+    /// Diameter, mm (G41/G42 use its half; G41.1/G42.1 take their own).
+    pub diameter_mm: f64,
+    /// Length offset, mm (G43 H).
+    pub length_mm: f64,
+    /// What it is ("6 mm drill").
+    pub comment: String,
 }
 
 /// `[[program]]`.

@@ -23,6 +23,8 @@ pub(crate) struct RawCell {
     pub task: Vec<RawTask>,
     #[serde(default)]
     pub program: Vec<RawProgram>,
+    #[serde(default)]
+    pub tool: Vec<RawTool>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -114,6 +116,15 @@ pub(crate) struct RawTask {
     pub group: Option<Spanned<String>>,
     pub program: Option<Spanned<String>>,
     pub overrun_limit: Option<Spanned<i64>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawTool {
+    pub number: Spanned<i64>,
+    pub diameter_mm: Spanned<f64>,
+    pub length_mm: Spanned<f64>,
+    pub comment: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -343,3 +343,36 @@ fn powerlink_links_take_udp_mem_or_an_interface() {
         assert!(e.to_string().contains("mem://NAME"), "{bad}: {e}");
     }
 }
+
+#[test]
+fn the_tool_table_is_read_and_checked() {
+    let good = format!(
+        "{BASE}\n[[tool]]\nnumber = 1\ndiameter_mm = 6.0\nlength_mm = 20.0\ncomment = \"6 mm drill\"\n\n\
+         [[tool]]\nnumber = 2\ndiameter_mm = 10\nlength_mm = 35.5\n"
+    );
+    let cell = parse(&good).unwrap();
+    assert_eq!(
+        cell.tools,
+        vec![
+            ToolConfig { number: 1, diameter_mm: 6.0, length_mm: 20.0, comment: "6 mm drill".into() },
+            ToolConfig { number: 2, diameter_mm: 10.0, length_mm: 35.5, comment: String::new() },
+        ]
+    );
+    assert!(parse(BASE).unwrap().tools.is_empty(), "a cell without tools has an empty table");
+    let bad = format!(
+        "{BASE}\n[[tool]]\nnumber = 1\ndiameter_mm = -6.0\nlength_mm = 20.0\n\n\
+         [[tool]]\nnumber = 1\ndiameter_mm = 6\nlength_mm = 0\n\n[[tool]]\nnumber = 0\ndiameter_mm = 6\nlength_mm = 0\n"
+    );
+    let errs = parse(&bad).expect_err("must fail").0;
+    let texts: Vec<String> = errs.iter().map(|e| format!("{}: {}", e.key, e.message)).collect();
+    assert_eq!(
+        texts,
+        [
+            "tool[0].diameter_mm: tool T1: diameter_mm (-6) must be a number >= 0",
+            "tool[1].number: tool T1 is listed twice",
+            "tool[2].number: tool[2]: number 0 is not 1-99999",
+        ],
+        "{errs:?}"
+    );
+    assert_eq!(errs[0].line, line_of(&bad, "diameter_mm = -6.0"));
+}

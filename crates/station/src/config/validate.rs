@@ -11,7 +11,8 @@ use toml::Spanned;
 use super::error::{ConfigError, Locator};
 use super::model::{
     AxisConfig, Cell, Device, DeviceKind, Group, Limits, Link, LinkKind, Program, Station, StudentLimits,
-    Supervisor, TaskConfig, TaskKind, DEFAULT_LISTEN, DEFAULT_OVERRUN_LIMIT, DEFAULT_PROGRAM_CHECK_TIME,
+    Supervisor, TaskConfig, TaskKind, ToolConfig, DEFAULT_LISTEN, DEFAULT_OVERRUN_LIMIT,
+    DEFAULT_PROGRAM_CHECK_TIME,
 };
 use super::raw::{RawAxis, RawCell, RawDevice, RawStudent, RawTask};
 
@@ -107,6 +108,7 @@ impl<'a> Validator<'a> {
         let groups = self.groups(&raw, &axis_names);
         let program_names = self.unique("program", &raw.program.iter().map(|p| &p.name).collect::<Vec<_>>());
         let programs = self.programs(&raw, &group_names);
+        let tools = self.tools(&raw);
         let supervisor = raw.supervisor.as_ref().map(|s| {
             let rules = self.path(s.rules.get_ref());
             if !(self.exists)(&rules) {
@@ -159,6 +161,7 @@ impl<'a> Validator<'a> {
                 supervisor,
                 tasks,
                 programs,
+                tools,
             })
         } else {
             self.errors.sort_by_key(|(o, _)| *o);
@@ -556,6 +559,53 @@ impl<'a> Validator<'a> {
                 name,
                 kind: g.kind,
                 axes: g.axes.get_ref().iter().map(|a| a.get_ref().clone()).collect(),
+            });
+        }
+        out
+    }
+
+    /// The tool table: numbers 1-99999, each once; diameters finite and not negative; lengths
+    /// finite.
+    fn tools(&mut self, raw: &RawCell) -> Vec<ToolConfig> {
+        let mut out = Vec::new();
+        let mut seen = HashSet::new();
+        for (i, t) in raw.tool.iter().enumerate() {
+            let n = *t.number.get_ref();
+            let number = match u32::try_from(n) {
+                Ok(k @ 1..=99_999) => k,
+                _ => {
+                    self.err(
+                        &t.number,
+                        format!("tool[{i}].number"),
+                        format!("tool[{i}]: number {n} is not 1-99999"),
+                    );
+                    continue;
+                }
+            };
+            if !seen.insert(number) {
+                self.err(&t.number, format!("tool[{i}].number"), format!("tool T{number} is listed twice"));
+            }
+            let d = *t.diameter_mm.get_ref();
+            if !(d.is_finite() && d >= 0.0) {
+                self.err(
+                    &t.diameter_mm,
+                    format!("tool[{i}].diameter_mm"),
+                    format!("tool T{number}: diameter_mm ({d}) must be a number >= 0"),
+                );
+            }
+            let l = *t.length_mm.get_ref();
+            if !l.is_finite() {
+                self.err(
+                    &t.length_mm,
+                    format!("tool[{i}].length_mm"),
+                    format!("tool T{number}: length_mm ({l}) must be a number"),
+                );
+            }
+            out.push(ToolConfig {
+                number,
+                diameter_mm: d,
+                length_mm: l,
+                comment: t.comment.clone().unwrap_or_default(),
             });
         }
         out
