@@ -85,6 +85,14 @@ pub enum PushError {
         /// Value given.
         seconds: f64,
     },
+    /// A path tolerance (G64 P or Q) negative or not finite.
+    #[error("line {line}: path tolerance {tolerance} must be finite and >= 0")]
+    Tolerance {
+        /// Program line.
+        line: u32,
+        /// Value given.
+        tolerance: f64,
+    },
     /// The executor is stopping; push after it is idle.
     #[error("executor is stopping; the buffer is being flushed")]
     Stopping,

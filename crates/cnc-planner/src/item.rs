@@ -128,6 +128,35 @@ pub enum PathItem<const N: usize> {
     /// Decoder synchronisation (G170 in the source): the decoder may not push further items
     /// until the path has reached this point (exact stop).
     DecoderSync,
+    /// How the moves after this point join (G61, G61.1, G64 P Q), until the next one.
+    PathControl(PathMode),
+}
+
+/// How consecutive moves join (the corner at the end of a move takes that move's mode).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "mode", rename_all = "snake_case")]
+pub enum PathMode {
+    /// G64 P Q: corners blended within `tolerance` (0: the machine's path tolerance); lines of
+    /// one feed that stay within `naive_cam` of a single line are folded into it (CAM output's
+    /// short segments; 0: never).
+    Blend {
+        /// Largest distance of a blend from the programmed corner, units.
+        tolerance: f64,
+        /// Naive-CAM folding tolerance, units.
+        naive_cam: f64,
+    },
+    /// G61: every programmed point is reached (the path stops at a corner; it runs on only
+    /// where two moves are collinear).
+    ExactPath,
+    /// G61.1: the path stops at the end of every move.
+    ExactStop,
+}
+
+impl Default for PathMode {
+    /// Blending within the machine's path tolerance, no folding.
+    fn default() -> Self {
+        PathMode::Blend { tolerance: 0.0, naive_cam: 0.0 }
+    }
 }
 
 /// Serde support for `[f64; N]` with a const generic `N`.

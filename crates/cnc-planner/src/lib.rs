@@ -32,7 +32,7 @@ pub use config::{AxisLimits, Config};
 pub use coupling::{Coupling, CouplingState, Recouple};
 pub use error::{CommandError, ConfigError, PushError};
 pub use executor::{Event, ExecState, Executor, Setpoint};
-pub use item::{ArcDirection, ExArray, PathItem, Plane, Segment};
+pub use item::{ArcDirection, ExArray, PathItem, PathMode, Plane, Segment};
 pub use piece::{Geometry, Marker, Piece};
 pub use planner::{Planner, MAX_OVERRIDE};
 pub use sink::{AxisSink, SinkError, METRES_PER_MM, RADIANS_PER_DEGREE};

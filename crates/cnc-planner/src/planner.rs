@@ -19,11 +19,18 @@
 //! change) and once per override change. The forward pass is done online by the executor.
 //! The last pushed line stays pending until the next one arrives (its end corner is not
 //! known yet), or until a stopping item or [`Planner::finish`] closes it.
+//!
+//! Path control ([`PathMode`], G61/G61.1/G64 P Q) applies per move: the corner at the end of
+//! a move takes that move's mode. G64 P bounds the blend (P 0: the machine's path
+//! tolerance); G64 Q folds consecutive lines of one feed into one while every folded point
+//! stays within Q of it; G61 blends nothing (the path stops at every corner that is not
+//! straight on); G61.1 stops at the end of every move. The chords of one arc always join
+//! as G64 (they are the planner's own approximation of one move).
 
 use crate::arc::{linearise, ArcSpec};
 use crate::config::Config;
 use crate::error::{ConfigError, PushError};
-use crate::item::{PathItem, Segment};
+use crate::item::{PathItem, PathMode, Segment};
 use crate::piece::{Geometry, Marker, Piece};
 use crate::vector::{add_scaled, dot, norm, scale, sub};
 use std::collections::VecDeque;
@@ -33,6 +40,9 @@ pub const MAX_OVERRIDE: f64 = 2.0;
 
 /// Lines shorter than this (in units) are dropped.
 const MIN_LENGTH: f64 = 1e-9;
+
+/// Points one folded line (G64 Q) keeps for its check at most; a longer run starts anew.
+const MAX_FOLDED: usize = 64;
 
 /// A line whose end corner is not known yet.
 #[derive(Debug, Clone, Copy)]
@@ -45,6 +55,8 @@ struct Pending<const N: usize> {
     feed: f64,
     line: u32,
     block: u64,
+    /// The path mode in force for this move (its end corner).
+    mode: PathMode,
 }
 
 /// Block buffer with look-ahead.
@@ -55,6 +67,11 @@ pub struct Planner<const N: usize> {
     base: u64,
     cursor: usize,
     pending: Option<Pending<N>>,
+    /// The programmed points folded into the pending line (G64 Q), its start and end
+    /// excluded.
+    folded: Vec<[f64; N]>,
+    /// The path mode for the moves pushed from now on.
+    mode: PathMode,
     pending_markers: Vec<(Marker, u32, u64)>,
     position: [f64; N],
     s_end: f64,
@@ -74,6 +91,8 @@ impl<const N: usize> Planner<N> {
             base: 0,
             cursor: 0,
             pending: None,
+            folded: Vec::new(),
+            mode: PathMode::default(),
             pending_markers: Vec::new(),
             position: start,
             s_end: 0.0,
@@ -157,6 +176,16 @@ impl<const N: usize> Planner<N> {
             PathItem::DecoderSync => {
                 self.push_marker(Marker::DecoderSync, line, block);
                 self.awaiting_sync = Some(line);
+            }
+            PathItem::PathControl(mode) => {
+                if let PathMode::Blend { tolerance, naive_cam } = mode {
+                    for t in [tolerance, naive_cam] {
+                        if !(t.is_finite() && t >= 0.0) {
+                            return Err(PushError::Tolerance { line, tolerance: t });
+                        }
+                    }
+                }
+                self.mode = mode;
             }
         }
         self.backward(first_new);
@@ -257,13 +286,57 @@ impl<const N: usize> Planner<N> {
             return;
         }
         self.segments += 1;
+        if let Some(p) = self.pending {
+            if self.folds(&p, &end, feed, block) {
+                // G64 Q: the pending line now ends here, through the points it folded.
+                self.folded.push(p.end);
+                let delta = sub(&end, &p.start);
+                let full = norm(&delta);
+                self.pending = Some(Pending { end, dir: scale(1.0 / full, &delta), full, ..p });
+                self.position = end;
+                return;
+            }
+        }
         let dir = scale(1.0 / len, &delta);
         let mut start = self.position;
         if let Some(p) = self.pending.take() {
             start = self.junction(p, &dir, len, feed, line, block);
         }
-        self.pending = Some(Pending { start, end, dir, full: len, feed, line, block });
+        self.folded.clear();
+        self.pending = Some(Pending { start, end, dir, full: len, feed, line, block, mode: self.mode });
         self.position = end;
+    }
+
+    /// Whether a line to `end` folds into the pending line `p` (G64 Q): both feeds of one
+    /// rate under one blending mode with a folding tolerance, another move than `p` (an arc's
+    /// chords are not folded), no marker between them, and every programmed point of the run
+    /// within the tolerance of the line from `p`'s start to `end`, in order along it.
+    fn folds(&self, p: &Pending<N>, end: &[f64; N], feed: f64, block: u64) -> bool {
+        let PathMode::Blend { naive_cam, .. } = p.mode else { return false };
+        if naive_cam <= 0.0
+            || self.mode != p.mode
+            || p.block == block
+            || feed != p.feed
+            || feed.is_infinite()
+            || !self.pending_markers.is_empty()
+            || self.folded.len() >= MAX_FOLDED
+        {
+            return false;
+        }
+        let chord = sub(end, &p.start);
+        let length = norm(&chord);
+        if length < MIN_LENGTH {
+            return false;
+        }
+        let u = scale(1.0 / length, &chord);
+        let mut along = 0.0;
+        self.folded.iter().chain(std::iter::once(&p.end)).all(|q| {
+            let w = sub(q, &p.start);
+            let t = dot(&w, &u);
+            let ok = t > along && t < length && norm(&add_scaled(&w, -t, &u)) <= naive_cam;
+            along = t;
+            ok
+        })
     }
 
     /// Plans the corner at the end of `p` towards `dir`; returns where the next line starts.
@@ -276,6 +349,14 @@ impl<const N: usize> Planner<N> {
         line: u32,
         block: u64,
     ) -> [f64; N] {
+        // The chords of one arc join as one move; otherwise the corner takes `p`'s mode.
+        let same_move = p.block == block;
+        if p.mode == PathMode::ExactStop && !same_move {
+            self.emit_line(p.start, &p.end, p.feed, p.line, p.block);
+            self.emit_pending_markers();
+            self.emit_marker(Marker::ExactStop, p.line, p.block);
+            return p.end;
+        }
         let cos = dot(&p.dir, dir).clamp(-1.0, 1.0);
         let theta = cos.acos();
         if theta < 1e-7 {
@@ -284,7 +365,12 @@ impl<const N: usize> Planner<N> {
             self.emit_pending_markers();
             return p.end;
         }
-        let tol = self.cfg.path_tolerance;
+        let tol = match p.mode {
+            _ if same_move => self.cfg.path_tolerance,
+            PathMode::Blend { tolerance, .. } if tolerance > 0.0 => tolerance,
+            PathMode::Blend { .. } => self.cfg.path_tolerance,
+            PathMode::ExactPath | PathMode::ExactStop => 0.0,
+        };
         let half = theta / 2.0;
         if tol <= 0.0 || theta > std::f64::consts::PI - 1e-3 {
             self.emit_line(p.start, &p.end, p.feed, p.line, p.block);
@@ -459,6 +545,7 @@ impl<const N: usize> Planner<N> {
         self.pieces.clear();
         self.cursor = 0;
         self.pending = None;
+        self.folded.clear();
         self.pending_markers.clear();
         self.position = position;
         self.s_end = 0.0;
@@ -561,5 +648,103 @@ mod tests {
         let mut bad = cfg();
         bad.axes[1].acceleration = 0.0;
         assert!(matches!(Planner::new(bad, [0.0; 3]), Err(ConfigError::Acceleration { axis: 1, .. })));
+    }
+
+    fn mode(m: PathMode) -> PathItem<3> {
+        PathItem::PathControl(m)
+    }
+
+    /// Distance of a blend's midpoint from the right-angle corner at (10, 0).
+    fn corner_deviation(p: &Planner<3>) -> f64 {
+        let arc = p.pieces().iter().find(|q| matches!(q.geometry, Geometry::Arc { .. })).unwrap();
+        let mid = arc.position(arc.length);
+        ((mid[0] - 10.0).powi(2) + mid[1].powi(2)).sqrt()
+    }
+
+    #[test]
+    fn g64_p_sets_the_blend_tolerance_of_the_corners_after_it() {
+        for (tolerance, want) in [(0.0, 0.05), (0.01, 0.01), (0.2, 0.2)] {
+            let mut p = Planner::new(cfg(), [0.0; 3]).unwrap();
+            p.push(1, mode(PathMode::Blend { tolerance, naive_cam: 0.0 })).unwrap();
+            p.push(2, line([10.0, 0.0, 0.0], 100.0)).unwrap();
+            p.push(3, line([10.0, 10.0, 0.0], 100.0)).unwrap();
+            p.finish();
+            let dev = corner_deviation(&p);
+            assert!((dev - want).abs() < 1e-12, "P {tolerance}: {dev}");
+        }
+        // The mode of the move before the corner counts: G64 P0.2 after the first line is
+        // too late for its corner.
+        let mut p = Planner::new(cfg(), [0.0; 3]).unwrap();
+        p.push(1, line([10.0, 0.0, 0.0], 100.0)).unwrap();
+        p.push(2, mode(PathMode::Blend { tolerance: 0.2, naive_cam: 0.0 })).unwrap();
+        p.push(3, line([10.0, 10.0, 0.0], 100.0)).unwrap();
+        p.finish();
+        assert!((corner_deviation(&p) - 0.05).abs() < 1e-12);
+        assert_eq!(
+            p.push(4, mode(PathMode::Blend { tolerance: -1.0, naive_cam: 0.0 })),
+            Err(PushError::Tolerance { line: 4, tolerance: -1.0 })
+        );
+    }
+
+    #[test]
+    fn g61_stops_at_corners_and_g61_1_at_every_move() {
+        let markers = |m: PathMode| {
+            let mut p = Planner::new(cfg(), [0.0; 3]).unwrap();
+            p.push(1, mode(m)).unwrap();
+            p.push(2, line([10.0, 0.0, 0.0], 100.0)).unwrap();
+            p.push(3, line([20.0, 0.0, 0.0], 100.0)).unwrap(); // collinear
+            p.push(4, line([20.0, 10.0, 0.0], 100.0)).unwrap(); // corner
+                                                                // An arc: its chords are one move.
+            p.push(
+                5,
+                PathItem::Motion(Segment::Arc {
+                    end: [20.0, 30.0, 0.0],
+                    centre: [20.0, 20.0],
+                    plane: crate::item::Plane::Xy,
+                    direction: crate::item::ArcDirection::CounterClockwise,
+                    extra_turns: 0,
+                    feed: 100.0,
+                }),
+            )
+            .unwrap();
+            p.finish();
+            let stops: Vec<u32> =
+                p.pieces().iter().filter(|q| q.marker() == Some(Marker::ExactStop)).map(|q| q.line).collect();
+            let arcs = p.pieces().iter().filter(|q| matches!(q.geometry, Geometry::Arc { .. })).count();
+            (stops, arcs)
+        };
+        let (stops, blends) = markers(PathMode::default());
+        assert!(stops.is_empty() && blends > 0, "G64: {stops:?}");
+        let (stops, _) = markers(PathMode::ExactPath);
+        // G61: a stop at the corner (3 -> 4) and where the arc leaves the line (4 -> 5);
+        // none on the collinear join.
+        assert_eq!(stops, vec![3, 4], "G61");
+        let (stops, blends) = markers(PathMode::ExactStop);
+        assert_eq!(stops, vec![2, 3, 4], "G61.1: after every move, not between an arc's chords");
+        assert!(blends > 0, "the arc's chords still join");
+    }
+
+    #[test]
+    fn g64_q_folds_short_cam_segments_within_its_tolerance() {
+        // A CAM line broken into 100 segments of 0.1 mm that wobble 0.002 mm off the line.
+        let run = |naive_cam: f64, feed2: f64| {
+            let mut p = Planner::new(cfg(), [0.0; 3]).unwrap();
+            p.push(0, mode(PathMode::Blend { tolerance: 0.0, naive_cam })).unwrap();
+            for k in 1..=100u32 {
+                let y = if k % 2 == 0 { 0.0 } else { 0.002 };
+                let feed = if k > 50 { feed2 } else { 100.0 };
+                p.push(k, line([f64::from(k) * 0.1, y, 0.0], feed)).unwrap();
+            }
+            p.finish();
+            // Pieces of the path (lines and blends).
+            p.pieces().iter().filter(|q| q.marker().is_none()).count()
+        };
+        let unfolded = run(0.0, 100.0);
+        let folded = run(0.01, 100.0);
+        // At most 64 points per folded line: 100 points make 2 lines and the blend between.
+        assert!(unfolded >= 100 && folded <= 4, "Q 0: {unfolded} pieces, Q 0.01: {folded}");
+        assert!(run(0.001, 100.0) >= 100, "a wobble beyond Q is not folded");
+        let two_feeds = run(0.01, 50.0);
+        assert!((2..=4).contains(&two_feeds), "two feeds are two lines: {two_feeds}");
     }
 }

@@ -1,7 +1,11 @@
 //! Canonical calls of the interpreter -> items of the planner's block buffer.
+//!
+//! Moves arrive in machine millimetres; path control (G61, G61.1, G64 P Q) arrives in
+//! program units, so the [`Adapter`] follows the length units (`USE_LENGTH_UNITS`) to hand
+//! the planner its tolerances in millimetres.
 
-use motus_cnc_planner::{ArcDirection, ExArray, PathItem, Plane, Segment};
-use motus_gcode::{Canon, CanonCall, ExValue, MSync, MachineMove};
+use motus_cnc_planner::{ArcDirection, ExArray, PathItem, PathMode, Plane, Segment};
+use motus_gcode::{Canon, CanonCall, ExValue, MSync, MachineMove, MotionControl, Units};
 
 use crate::AXES;
 
@@ -18,8 +22,64 @@ fn plane(p: motus_gcode::Plane) -> Plane {
     }
 }
 
-/// The block-buffer item of a canonical call (`None` for calls that do not reach the path:
-/// units, planes, offsets, comments... — their effect is already in the machine coordinates).
+/// The conversion of one program's canonical calls (it keeps the modal state the items need).
+#[derive(Debug, Clone)]
+pub struct Adapter {
+    /// Millimetres per program unit.
+    mm: f64,
+    /// G61 / G61.1 / G64 and its P (mm).
+    mode: MotionControl,
+    tolerance: f64,
+    /// G64 Q (mm).
+    naive_cam: f64,
+}
+
+impl Default for Adapter {
+    /// Millimetres, G64 without P or Q (as the interpreter starts).
+    fn default() -> Self {
+        Self { mm: 1.0, mode: MotionControl::Continuous, tolerance: 0.0, naive_cam: 0.0 }
+    }
+}
+
+impl Adapter {
+    /// The block-buffer item of a canonical call (`None` for calls that do not reach the
+    /// path: planes, offsets, comments... — their effect is already in the machine
+    /// coordinates).
+    pub fn item(&mut self, call: &CanonCall) -> Option<PathItem<AXES>> {
+        match &call.canon {
+            Canon::UseLengthUnits { units } => {
+                self.mm = match units {
+                    Units::Mm => 1.0,
+                    Units::Inch => 25.4,
+                };
+                None
+            }
+            Canon::SetMotionControlMode { mode, tolerance } => {
+                self.mode = *mode;
+                self.tolerance = tolerance * self.mm;
+                Some(self.path_control())
+            }
+            Canon::SetNaivecamTolerance { tolerance } => {
+                self.naive_cam = tolerance * self.mm;
+                Some(self.path_control())
+            }
+            _ => item(call),
+        }
+    }
+
+    fn path_control(&self) -> PathItem<AXES> {
+        PathItem::PathControl(match self.mode {
+            MotionControl::ExactStop => PathMode::ExactStop,
+            MotionControl::ExactPath => PathMode::ExactPath,
+            MotionControl::Continuous => {
+                PathMode::Blend { tolerance: self.tolerance, naive_cam: self.naive_cam }
+            }
+        })
+    }
+}
+
+/// The block-buffer item of a canonical call that needs no modal state: moves, M-functions,
+/// external parameters, dwells (`None` for the others; see [`Adapter::item`]).
 pub fn item(call: &CanonCall) -> Option<PathItem<AXES>> {
     if let Some(m) = &call.machine {
         return Some(PathItem::Motion(match m {

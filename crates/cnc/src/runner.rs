@@ -120,6 +120,7 @@ impl RunReport {
 /// One program on one CNC system (see the module documentation).
 pub struct ProgramRun<'a> {
     interp: Interpreter<'a>,
+    adapter: adapter::Adapter,
     exec: Executor<AXES>,
     pending: Option<(u32, PathItem<AXES>)>,
     decoded_all: bool,
@@ -149,6 +150,7 @@ impl<'a> ProgramRun<'a> {
             Executor::new(cfg, start).map_err(|e| RunError::Planner { line: 0, message: e.to_string() })?;
         Ok(Self {
             interp: Interpreter::with_config(src, config),
+            adapter: adapter::Adapter::default(),
             exec,
             pending: None,
             decoded_all: false,
@@ -217,7 +219,7 @@ impl<'a> ProgramRun<'a> {
                         None
                     }
                     Some(Err(e)) => return Err(e.into()),
-                    Some(Ok(call)) => adapter::item(&call).map(|i| (call.line, i)),
+                    Some(Ok(call)) => self.adapter.item(&call).map(|i| (call.line, i)),
                 },
             };
             let Some((line, item)) = next else { continue };
