@@ -39,16 +39,44 @@ impl Axis for StationAxis {
         self.with_axis(|a| a.read_state())
     }
     fn execute(&mut self, command: &AxisCommand) -> Result<(), AxisError> {
-        self.with_axis(|a| a.execute(command))
+        match *command {
+            AxisCommand::MoveAbsolute { target, profile } => {
+                let command = AxisCommand::MoveAbsolute { target: self.within_travel(target), profile };
+                self.with_axis(|a| a.execute(&command))
+            }
+            _ => self.with_axis(|a| a.execute(command)),
+        }
     }
 }
 
 impl StationAxis {
+    /// A set-point at the end of the travel (a program going to X0 on an axis whose travel
+    /// starts at 0) may lie outside it by the path's rounding (1e-17 m): within half a
+    /// device unit, where the drive rounds to the same position, it is put on the end.
+    /// Anything further is left to the axis, which refuses it (the run stops).
+    fn within_travel(&self, target: f64) -> f64 {
+        match self.shared.config.axis(&self.name) {
+            Some(c) => onto_travel(target, c.limits.min, c.limits.max, self.scale.si_per_unit().abs() / 2.0),
+            None => target,
+        }
+    }
+
     fn with_axis<T>(&self, f: impl FnOnce(&mut dyn Axis) -> Result<T, AxisError>) -> Result<T, AxisError> {
         match self.shared.axes.get(self.index) {
             Some(a) => f(&mut **lock(&a.axis)),
             None => Err(AxisError::Unsupported { axis: self.name.clone(), command: "commands".into() }),
         }
+    }
+}
+
+/// `target` put on the end of the travel `min..=max` when it lies outside by at most `slack`.
+fn onto_travel(target: f64, min: f64, max: f64, slack: f64) -> f64 {
+    if target < min && target >= min - slack {
+        min
+    } else if target > max && target <= max + slack {
+        max
+    } else {
+        target
     }
 }
 
@@ -89,4 +117,20 @@ pub(crate) fn sink(shared: &Arc<Shared>, limits: &Limits3) -> Option<SetpointSin
             format!("gantry: {e}; the program was stopped")
         })
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::onto_travel;
+
+    #[test]
+    fn rounding_past_the_travel_end_is_put_on_it_and_nothing_more() {
+        let half_unit = 0.5e-6;
+        assert_eq!(onto_travel(-7.1e-18, 0.0, 0.6, half_unit), 0.0);
+        assert_eq!(onto_travel(0.6 + 1e-12, 0.0, 0.6, half_unit), 0.6);
+        assert_eq!(onto_travel(0.3, 0.0, 0.6, half_unit), 0.3);
+        // Beyond half a device unit: left to the axis, which refuses it.
+        assert_eq!(onto_travel(-1e-6, 0.0, 0.6, half_unit), -1e-6);
+        assert_eq!(onto_travel(0.61, 0.0, 0.6, half_unit), 0.61);
+    }
 }

@@ -58,6 +58,16 @@ fn home_gantry(admin: &Client) {
     }
 }
 
+/// A station with its gantry homed and the student's slot booked: (station, admin, student).
+fn booked_station() -> (common::Station, Client, Client) {
+    let st = common::station();
+    let admin = Client::login(&st.addr, "admin", "admin-password-1");
+    let student = Client::login(&st.addr, "student", "student-password-1");
+    book(&student);
+    home_gantry(&admin);
+    (st, admin, student)
+}
+
 fn wait_program(c: &Client, state: &str) -> Value {
     let t0 = Instant::now();
     loop {
@@ -235,11 +245,7 @@ fn a_check_that_would_take_hours_stops_at_its_budget_and_the_station_stays_respo
 #[test]
 fn a_program_cannot_take_a_student_beyond_the_limits_and_nothing_moves() {
     let _serial = serial();
-    let st = common::station();
-    let admin = Client::login(&st.addr, "admin", "admin-password-1");
-    let student = Client::login(&st.addr, "student", "student-password-1");
-    book(&student);
-    home_gantry(&admin);
+    let (_st, admin, student) = booked_station();
     let x0 = student.axis("x")["position"].as_f64().unwrap();
 
     // X 500 mm = 0.5 m is inside the student range of x ([0, 0.55] m), but F1000000 (16.7 m/s)
@@ -447,11 +453,7 @@ fn students_see_check_and_run_their_own_and_published_programs_viewers_neither()
 #[test]
 fn the_runner_drives_the_gantry_with_override_single_block_mdi_preview_and_path() {
     let _serial = serial();
-    let st = common::station();
-    let admin = Client::login(&st.addr, "admin", "admin-password-1");
-    let student = Client::login(&st.addr, "student", "student-password-1");
-    book(&student);
-    home_gantry(&admin);
+    let (_st, admin, student) = booked_station();
     // A square of 40 mm at 1200 mm/min (20 mm/s, within the student's 80 mm/s).
     let square = "G21 G90 F1200\nG1 X40\nG1 Y40\nG1 X0\nG1 Y0\nM2\n";
     let (id, check) = upload(&student, "square.ngc", square);

@@ -54,6 +54,7 @@ where
 
 /// Body of `POST /api/programs/override`.
 #[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct OverrideBody {
     /// Percent, 0-200 (students: at most 100).
     pub percent: f64,
@@ -75,6 +76,7 @@ pub async fn set_override(
 
 /// Body of `POST /api/programs/single-block`.
 #[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SingleBlockBody {
     /// On or off.
     pub on: bool,
@@ -125,6 +127,7 @@ pub async fn executed_path(
 
 /// Body of `POST /api/mdi`.
 #[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct MdiBody {
     /// One G-code line.
     pub line: String,

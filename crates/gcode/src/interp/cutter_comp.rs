@@ -575,17 +575,7 @@ impl Interpreter<'_> {
             let corner = if rapid {
                 Canon::StraightTraverse { end: with_plane(axes, &end, mx, my, cz) }
             } else {
-                Canon::ArcFeed(ArcFeed {
-                    first_end: mx,
-                    second_end: my,
-                    first_centre: opx,
-                    second_centre: opy,
-                    rotation: if left { -1 } else { 1 },
-                    axis_end: cz,
-                    a: get(&end, 3),
-                    b: get(&end, 4),
-                    c: get(&end, 5),
-                })
+                corner_arc((mx, my), (opx, opy), left, cz, &end)
             };
             self.enqueue(corner, (0.0, 0.0), 0.0, feed);
             self.dequeue_canons();
@@ -815,22 +805,7 @@ impl Interpreter<'_> {
             // Convex: an arc about the programmed corner first.
             let (mx, my) = (opx + r * delta.cos(), opy + r * delta.sin());
             self.dequeue_canons();
-            self.enqueue(
-                Canon::ArcFeed(ArcFeed {
-                    first_end: mx,
-                    second_end: my,
-                    first_centre: opx,
-                    second_centre: opy,
-                    rotation: if left { -1 } else { 1 },
-                    axis_end: cz,
-                    a: get(&end, 3),
-                    b: get(&end, 4),
-                    c: get(&end, 5),
-                }),
-                (0.0, 0.0),
-                0.0,
-                feed,
-            );
+            self.enqueue(corner_arc((mx, my), (opx, opy), left, cz, &end), (0.0, 0.0), 0.0, feed);
             self.dequeue_canons();
             self.comp.endpoint = Some((mx, my));
             self.enqueue(main, (0.0, 0.0), sweep, feed);
@@ -842,6 +817,23 @@ impl Interpreter<'_> {
         self.comp.cur = [nx, ny, ez];
         Ok(())
     }
+}
+
+/// The arc a convex corner gets: about the programmed corner `centre` to `end_xy` (the
+/// compensated start of the next move), clockwise for G41, counter-clockwise for G42, the
+/// third axis and A, B, C at `axis_end` and `end`'s.
+fn corner_arc(end_xy: (f64, f64), centre: (f64, f64), left: bool, axis_end: f64, end: &Pose) -> Canon {
+    Canon::ArcFeed(ArcFeed {
+        first_end: end_xy.0,
+        second_end: end_xy.1,
+        first_centre: centre.0,
+        second_centre: centre.1,
+        rotation: if left { -1 } else { 1 },
+        axis_end,
+        a: get(end, 3),
+        b: get(end, 4),
+        c: get(end, 5),
+    })
 }
 
 #[cfg(test)]
