@@ -562,6 +562,7 @@ impl MachineBackend for StationMachine {
         self.check_student_program(caller, &check)?;
         let start = self.gantry_ready()?;
         tracing::info!(user = %caller.user, id, demands = ?check.demands, ?start, "program run");
+        *lock(&self.programs.mdi_line) = None;
         self.programs.service.run_checked_from(id, &text, start);
         *lock(&self.programs.running) = Some(id.to_owned());
         Ok(())
@@ -671,9 +672,18 @@ impl MachineBackend for StationMachine {
         self.check_student_program(caller, &check)?;
         let start = self.gantry_ready()?;
         tracing::info!(user = %caller.user, line, ?start, "MDI");
+        *lock(&self.programs.mdi_line) = Some(line.trim().to_owned());
         self.programs.service.run_checked_from("MDI", line.trim(), start);
         *lock(&self.programs.running) = Some("MDI".to_owned());
         Ok(())
+    }
+
+    fn running_mdi(&self) -> Option<String> {
+        if self.program_active() {
+            lock(&self.programs.mdi_line).clone()
+        } else {
+            None
+        }
     }
 
     fn signals(&self) -> Vec<SignalView> {

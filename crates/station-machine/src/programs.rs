@@ -33,6 +33,8 @@ pub(crate) struct Programs {
     pub(crate) store: Mutex<BTreeMap<String, Entry>>,
     pub(crate) service: ProgramService,
     pub(crate) running: Mutex<Option<String>>,
+    /// The MDI line of the last run, when it was one.
+    pub(crate) mdi_line: Mutex<Option<String>>,
     pub(crate) checker: Checker,
     pub(crate) versions: AtomicU64,
 }
@@ -101,6 +103,7 @@ impl Programs {
             // The booked machine's gantry follows every set-point.
             service: ProgramService::start(limits, config.clone(), crate::gantry::sink(shared, &limits))?,
             running: Mutex::new(None),
+            mdi_line: Mutex::new(None),
             checker: Checker::start(options, budget, gantry.map(|(g, _)| g), config)?,
             versions: AtomicU64::new(1),
         })

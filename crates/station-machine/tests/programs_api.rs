@@ -521,6 +521,15 @@ fn the_runner_drives_the_gantry_with_override_single_block_mdi_preview_and_path(
     wait_program(&student, "done");
     let x = student.wait_axis("x", Duration::from_secs(10), "at X 12", |a| a["moving"] == false);
     assert!((x["position"].as_f64().unwrap() - 0.012).abs() < 1e-4, "{x}");
+    // Held and resumed like a program (authorised again from the line's own check).
+    student.ok("POST", "/api/mdi", json!({ "line": "G1 X30 F300" }));
+    std::thread::sleep(Duration::from_millis(500));
+    student.ok("POST", "/api/programs/hold", Value::Null);
+    wait_program(&student, "held");
+    student.ok("POST", "/api/programs/resume", Value::Null);
+    wait_program(&student, "done");
+    let x = student.wait_axis("x", Duration::from_secs(10), "at X 30", |a| a["moving"] == false);
+    assert!((x["position"].as_f64().unwrap() - 0.030).abs() < 1e-4, "{x}");
     let (code, body) = student.call("POST", "/api/mdi", json!({ "line": "G1 X700 F600" }));
     assert_eq!(code, 400, "beyond the machine travel: {body}");
     let (code, body) = student.call("POST", "/api/mdi", json!({ "line": "G1 X10\nG1 X20" }));

@@ -133,33 +133,46 @@ pub struct MdiBody {
     pub line: String,
 }
 
-/// `POST /api/mdi`: one line checked as a program (errors, travel, demands authorised by lab,
-/// the student limits), then executed on the machine; audited as `command.mdi`.
-pub async fn mdi(State(state): State<AppState>, Csrf(auth): Csrf, Body(b): Body<MdiBody>) -> ApiResult {
-    const ACTION: &str = "command.mdi";
-    let shown: String = b.line.chars().take(MDI_MAX_LEN).collect();
+/// The lab command that runs MDI `line` with its demands, and its audit target: the line
+/// checked as a program (viewers, errors and a busy checker refused here, audited as
+/// `action`).
+pub(crate) async fn mdi_command(
+    state: &AppState,
+    auth: &Auth,
+    line: &str,
+    action: &str,
+) -> Result<(Command, String), ApiError> {
+    let shown: String = line.chars().take(MDI_MAX_LEN).collect();
     let target = |demands: &[(String, motus_lab::MotionDemand)]| {
-        program_target(&state, "mdi", Some(&format!("MDI {shown:?}")), demands)
+        program_target(state, "mdi", Some(&format!("MDI {shown:?}")), demands)
     };
-    no_viewers(&state, &auth, ACTION, "mdi")?;
+    no_viewers(state, auth, action, "mdi")?;
     let backend = std::sync::Arc::clone(&state.backend);
     let caller = auth.caller();
-    let line = b.line.clone();
+    let owned = line.to_owned();
     let check: Result<ProgramCheck, ApiError> =
-        blocking(move || backend.check_mdi(&caller, &line)).await.map_err(ApiError::from);
+        blocking(move || backend.check_mdi(&caller, &owned)).await.map_err(ApiError::from);
     let check = match check {
         Ok(c) => c,
         Err(e) => {
-            audit_program(&state, &auth, ACTION, target(&[]), refusal(&e));
+            audit_program(state, auth, action, target(&[]), refusal(&e));
             return Err(e.mark_audited());
         }
     };
     if let Some(e) = check.errors.first() {
         let message = format!("{}:{}: {}", e.line, e.col, e.message);
-        audit_program(&state, &auth, ACTION, target(&check.demands), AuditOutcome::Error(message.clone()));
+        audit_program(state, auth, action, target(&check.demands), AuditOutcome::Error(message.clone()));
         return Err(ApiError::invalid(json!({ "message": message, "errors": check.errors })).mark_audited());
     }
-    let command = Command::RunProgram { name: format!("MDI {shown}"), demands: check.demands.clone() };
+    let t = target(&check.demands);
+    Ok((Command::RunProgram { name: format!("MDI {shown}"), demands: check.demands }, t))
+}
+
+/// `POST /api/mdi`: one line checked as a program (errors, travel, demands authorised by lab,
+/// the student limits), then executed on the machine; audited as `command.mdi`.
+pub async fn mdi(State(state): State<AppState>, Csrf(auth): Csrf, Body(b): Body<MdiBody>) -> ApiResult {
+    const ACTION: &str = "command.mdi";
+    let (command, target) = mdi_command(&state, &auth, &b.line, ACTION).await?;
     let action = Action::Command { station: state.config.station.clone(), command };
     if let Err(e) =
         state.lab.authorizer().authorize(&auth.session.user, auth.session.role, &action, state.now())
@@ -168,7 +181,7 @@ pub async fn mdi(State(state): State<AppState>, Csrf(auth): Csrf, Body(b): Body<
             motus_lab::AuthzError::Denied(d) => AuditOutcome::Denied(d.reason.to_string()),
             other => AuditOutcome::Error(other.to_string()),
         };
-        audit_program(&state, &auth, ACTION, target(&check.demands), outcome);
+        audit_program(&state, &auth, ACTION, target, outcome);
         return Err(ApiError::from(e).mark_audited());
     }
     let backend = std::sync::Arc::clone(&state.backend);
@@ -178,7 +191,7 @@ pub async fn mdi(State(state): State<AppState>, Csrf(auth): Csrf, Body(b): Body<
         Ok(()) => AuditOutcome::Ok,
         Err(e) => refusal(&ApiError::from(e.clone())),
     };
-    audit_program(&state, &auth, ACTION, target(&check.demands), outcome);
+    audit_program(&state, &auth, ACTION, target, outcome);
     result.map_err(|e| ApiError::from(e).mark_audited())?;
     Ok(ok())
 }

@@ -533,14 +533,20 @@ pub async fn hold_program(State(state): State<AppState>, Csrf(auth): Csrf) -> Ap
     Ok(ok())
 }
 
-/// `POST /api/programs/resume`: authorised like running the held program.
+/// `POST /api/programs/resume`: authorised like running the held program (or MDI line).
 pub async fn resume_program(State(state): State<AppState>, Csrf(auth): Csrf) -> ApiResult {
-    let id = state
-        .backend
-        .program_status()
-        .program
-        .ok_or_else(|| ApiError::from(BackendError::State("no program to resume".into())))?;
-    let (command, _) = program_command(&state, &auth, &id, "command.resume_program").await?;
+    const ACTION: &str = "command.resume_program";
+    let (command, _) = match state.backend.running_mdi() {
+        Some(line) => crate::api_cnc::mdi_command(&state, &auth, &line, ACTION).await?,
+        None => {
+            let id = state
+                .backend
+                .program_status()
+                .program
+                .ok_or_else(|| ApiError::from(BackendError::State("no program to resume".into())))?;
+            program_command(&state, &auth, &id, ACTION).await?
+        }
+    };
     let backend = std::sync::Arc::clone(&state.backend);
     state.command(&auth, command, move |c| backend.resume_program(&c)).await?;
     Ok(ok())

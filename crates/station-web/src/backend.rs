@@ -606,6 +606,9 @@ pub trait MachineBackend: Send + Sync {
     /// [`BackendError::Invalid`] (empty, several lines, too long), as
     /// [`MachineBackend::check_program`] otherwise.
     fn check_mdi(&self, caller: &Caller, line: &str) -> Result<ProgramCheck, BackendError>;
+    /// The MDI line the runner is executing (running, held or at a block stop), if its
+    /// program is one: resuming it is authorised like running the line again.
+    fn running_mdi(&self) -> Option<String>;
     /// Executes one MDI line on the machine (checked again, as a program).
     ///
     /// # Errors
