@@ -412,6 +412,18 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::panic)]
     use super::*;
 
+    /// The status once `done` holds for it, or the last one after `secs` (liveness).
+    fn wait_for(svc: &ProgramService, secs: u64, done: impl Fn(&ServiceStatus) -> bool) -> ServiceStatus {
+        let end = Instant::now() + Duration::from_secs(secs);
+        loop {
+            let s = svc.status();
+            if done(&s) || Instant::now() > end {
+                return s;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
     fn wait(svc: &ProgramService, want: ServiceState, secs: u64) -> ServiceStatus {
         let end = Instant::now() + Duration::from_secs(secs);
         loop {
@@ -458,14 +470,14 @@ mod tests {
         assert_eq!(svc.status().override_percent, 100.0, "a refused override changes nothing");
         // 600 mm/min on a long line: the executed feed follows the override.
         svc.run_checked_from("feed", "G21 G90 F600\nG1 X100\nM2\n", [10.0, 0.0, 0.0]);
-        std::thread::sleep(Duration::from_millis(400));
-        let at_100 = svc.status();
+        let at_100 = wait_for(&svc, 5, |s| (s.feed - 600.0).abs() < 1.0);
         assert!((at_100.feed - 600.0).abs() < 1.0, "{at_100:?}");
         svc.set_override(50.0).unwrap();
-        std::thread::sleep(Duration::from_millis(400));
-        let at_50 = svc.status();
+        let at_50 = wait_for(&svc, 5, |s| (s.feed - 300.0).abs() < 1.0);
         assert!((at_50.feed - 300.0).abs() < 1.0, "{at_50:?}");
         assert_eq!(at_50.override_percent, 50.0);
+        // On 2 mm along the line (at least ten points of the executed path), then stop.
+        wait_for(&svc, 5, |s| s.xyz[0] > 12.0);
         svc.stop();
         let stopped = wait(&svc, ServiceState::Stopped, 3);
         let path = svc.executed_path(0, 0);

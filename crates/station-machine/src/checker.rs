@@ -221,6 +221,16 @@ impl<'g> Accumulator<'g> {
     }
 }
 
+/// The angle an arc sweeps from angle `t0` to `t1` (radians), `rotation` < 0 clockwise,
+/// |rotation| turns (the same start and end: a full circle; extra turns bounded at 1,000).
+pub(crate) fn arc_sweep(t0: f64, t1: f64, rotation: i32) -> f64 {
+    let mut sweep = if rotation >= 0 { t1 - t0 } else { t0 - t1 }.rem_euclid(TAU);
+    if sweep < 1e-9 {
+        sweep += TAU;
+    }
+    sweep + f64::from(rotation.unsigned_abs().saturating_sub(1).min(1_000)) * TAU
+}
+
 /// The extremes of an arc about the origin from `s` to `e` (plane coordinates relative to
 /// the centre), `rotation` < 0 clockwise, |rotation| turns: every crossing of a coordinate
 /// axis inside the swept angle, as (0 = first coordinate | 1 = second, value).
@@ -229,11 +239,7 @@ fn arc_extremes(s: (f64, f64), e: (f64, f64), rotation: i32) -> Vec<(usize, f64)
     let ts = s.1.atan2(s.0);
     let te = e.1.atan2(e.0);
     let ccw = rotation >= 0;
-    let mut sweep = if ccw { te - ts } else { ts - te }.rem_euclid(TAU);
-    if sweep < 1e-9 {
-        sweep += TAU; // same start and end: a full circle
-    }
-    sweep += f64::from(rotation.unsigned_abs().saturating_sub(1).min(1_000)) * TAU;
+    let sweep = arc_sweep(ts, te, rotation);
     let mut out = Vec::new();
     for (phi, (axis, value)) in
         [0.0, 0.25, 0.5, 0.75].into_iter().map(|q| q * TAU).zip([(0, r), (1, r), (0, -r), (1, -r)])

@@ -85,12 +85,7 @@ impl PreviewBuilder {
                 let (r0, r1) = (sa.hypot(sb), ea.hypot(eb));
                 let (t0, t1) = (sb.atan2(sa), eb.atan2(ea));
                 let ccw = *rotation >= 0;
-                let tau = std::f64::consts::TAU;
-                let mut sweep = if ccw { t1 - t0 } else { t0 - t1 }.rem_euclid(tau);
-                if sweep < 1e-9 {
-                    sweep += tau;
-                }
-                sweep += f64::from(rotation.unsigned_abs().saturating_sub(1).min(1_000)) * tau;
+                let sweep = crate::checker::arc_sweep(t0, t1, *rotation);
                 let n = ((sweep / ARC_STEP).ceil() as usize).clamp(1, MAX_CHORDS);
                 for k in 1..=n {
                     let f = k as f64 / n as f64;

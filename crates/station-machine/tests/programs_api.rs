@@ -68,6 +68,19 @@ fn booked_station() -> (common::Station, Client, Client) {
     (st, admin, student)
 }
 
+/// The runner's status once `done` holds for it (a liveness bound of 30 s).
+fn wait_status(c: &Client, what: &str, done: impl Fn(&Value) -> bool) -> Value {
+    let t0 = Instant::now();
+    loop {
+        let s = c.ok("GET", "/api/programs/status", Value::Null);
+        if done(&s) {
+            return s;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(30), "waiting for {what}: {s}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 fn wait_program(c: &Client, state: &str) -> Value {
     let t0 = Instant::now();
     loop {
@@ -473,16 +486,15 @@ fn the_runner_drives_the_gantry_with_override_single_block_mdi_preview_and_path(
     student.ok("POST", "/api/programs/override", json!({ "percent": 100.0 }));
 
     student.ok("POST", &format!("/api/programs/{id}/run"), Value::Null);
-    std::thread::sleep(Duration::from_millis(500));
-    let at_100 = student.ok("GET", "/api/programs/status", Value::Null);
+    let feed_near = |f: f64| move |s: &Value| (s["feed"].as_f64().unwrap_or(0.0) - f).abs() < 1.0;
+    let at_100 = wait_status(&student, "the programmed feed", feed_near(1200.0));
     assert!((at_100["feed"].as_f64().unwrap() - 1200.0).abs() < 1.0, "{at_100}");
     // The gantry axis the program drives refuses a jog meanwhile.
     let (code, body) = student.call("POST", "/api/axes/x/jog", json!({ "direction": 1.0, "speed": 0.01 }));
     assert_eq!(code, 409, "{body}");
     assert!(body["detail"].as_str().unwrap().contains("driven by the running program"), "{body}");
     student.ok("POST", "/api/programs/override", json!({ "percent": 50.0 }));
-    std::thread::sleep(Duration::from_millis(400));
-    let at_50 = student.ok("GET", "/api/programs/status", Value::Null);
+    let at_50 = wait_status(&student, "half the feed", feed_near(600.0));
     assert!((at_50["feed"].as_f64().unwrap() - 600.0).abs() < 1.0, "{at_50}");
     assert_eq!(at_50["override_percent"], 50.0);
     student.ok("POST", "/api/programs/override", json!({ "percent": 100.0 }));
@@ -523,7 +535,9 @@ fn the_runner_drives_the_gantry_with_override_single_block_mdi_preview_and_path(
     assert!((x["position"].as_f64().unwrap() - 0.012).abs() < 1e-4, "{x}");
     // Held and resumed like a program (authorised again from the line's own check).
     student.ok("POST", "/api/mdi", json!({ "line": "G1 X30 F300" }));
-    std::thread::sleep(Duration::from_millis(500));
+    wait_status(&student, "the MDI line moving", |s| {
+        s["program"] == "MDI" && s["feed"].as_f64().unwrap_or(0.0) > 0.0
+    });
     student.ok("POST", "/api/programs/hold", Value::Null);
     wait_program(&student, "held");
     student.ok("POST", "/api/programs/resume", Value::Null);
@@ -540,7 +554,9 @@ fn the_runner_drives_the_gantry_with_override_single_block_mdi_preview_and_path(
 
     // The E-stop ends a run at once; nothing moves on.
     student.ok("POST", &format!("/api/programs/{id}/run"), Value::Null);
-    std::thread::sleep(Duration::from_millis(300));
+    wait_status(&student, "the run moving", |s| {
+        s["state"] == "running" && s["feed"].as_f64().unwrap_or(0.0) > 0.0
+    });
     student.ok("POST", "/api/estop", Value::Null);
     let stopped = wait_program(&student, "stopped");
     assert!(stopped["message"].as_str().unwrap().contains("emergency stop"), "{stopped}");

@@ -14,7 +14,9 @@ use motus_lab::{Action, AuditOutcome, Command};
 use serde::Deserialize;
 use serde_json::json;
 
-use crate::api_machine::{audit_program, blocking, no_viewers, ok, program_target, refusal};
+use crate::api_machine::{
+    audit_program, authorize_and_run, blocking, no_viewers, ok, program_target, refusal,
+};
 use crate::auth::{Auth, Body, Csrf};
 use crate::backend::{BackendError, ProgramCheck};
 use crate::error::ApiError;
@@ -173,25 +175,6 @@ pub(crate) async fn mdi_command(
 pub async fn mdi(State(state): State<AppState>, Csrf(auth): Csrf, Body(b): Body<MdiBody>) -> ApiResult {
     const ACTION: &str = "command.mdi";
     let (command, target) = mdi_command(&state, &auth, &b.line, ACTION).await?;
-    let action = Action::Command { station: state.config.station.clone(), command };
-    if let Err(e) =
-        state.lab.authorizer().authorize(&auth.session.user, auth.session.role, &action, state.now())
-    {
-        let outcome = match &e {
-            motus_lab::AuthzError::Denied(d) => AuditOutcome::Denied(d.reason.to_string()),
-            other => AuditOutcome::Error(other.to_string()),
-        };
-        audit_program(&state, &auth, ACTION, target, outcome);
-        return Err(ApiError::from(e).mark_audited());
-    }
     let backend = std::sync::Arc::clone(&state.backend);
-    let caller = auth.caller();
-    let result = blocking(move || backend.run_mdi(&caller, &b.line)).await;
-    let outcome = match &result {
-        Ok(()) => AuditOutcome::Ok,
-        Err(e) => refusal(&ApiError::from(e.clone())),
-    };
-    audit_program(&state, &auth, ACTION, target, outcome);
-    result.map_err(|e| ApiError::from(e).mark_audited())?;
-    Ok(ok())
+    authorize_and_run(&state, &auth, ACTION, command, target, move |c| backend.run_mdi(&c, &b.line)).await
 }

@@ -463,25 +463,42 @@ pub async fn run_program(
 ) -> ApiResult {
     const ACTION: &str = "command.run_program";
     let (command, target) = program_command(&state, &auth, &id, ACTION).await?;
-    let action = Action::Command { station: state.config.station.clone(), command };
+    let backend = std::sync::Arc::clone(&state.backend);
+    authorize_and_run(&state, &auth, ACTION, command, target, move |c| backend.run_program(&c, &id)).await
+}
+
+/// Authorises `command` with lab (a denial audited as `action` with `target`), runs `f` on a
+/// blocking thread, audits its result: the path of every program-like run (a stored
+/// program, an MDI line).
+pub(crate) async fn authorize_and_run<F>(
+    state: &AppState,
+    auth: &Auth,
+    action: &str,
+    command: Command,
+    target: String,
+    f: F,
+) -> ApiResult
+where
+    F: FnOnce(crate::backend::Caller) -> Result<(), BackendError> + Send + 'static,
+{
+    let lab_action = Action::Command { station: state.config.station.clone(), command };
     if let Err(e) =
-        state.lab.authorizer().authorize(&auth.session.user, auth.session.role, &action, state.now())
+        state.lab.authorizer().authorize(&auth.session.user, auth.session.role, &lab_action, state.now())
     {
         let outcome = match &e {
             motus_lab::AuthzError::Denied(d) => AuditOutcome::Denied(d.reason.to_string()),
             other => AuditOutcome::Error(other.to_string()),
         };
-        audit_program(&state, &auth, ACTION, target, outcome);
+        audit_program(state, auth, action, target, outcome);
         return Err(ApiError::from(e).mark_audited());
     }
-    let backend = std::sync::Arc::clone(&state.backend);
     let caller = auth.caller();
-    let result = blocking(move || backend.run_program(&caller, &id)).await;
+    let result = blocking(move || f(caller)).await;
     let outcome = match &result {
         Ok(()) => AuditOutcome::Ok,
         Err(e) => refusal(&ApiError::from(e.clone())),
     };
-    audit_program(&state, &auth, ACTION, target, outcome);
+    audit_program(state, auth, action, target, outcome);
     result.map_err(|e| ApiError::from(e).mark_audited())?;
     Ok(ok())
 }
