@@ -24,6 +24,17 @@ pub enum EplCommand {
     Cn(EplCnArgs),
 }
 
+/// How `motus epl cn` waits for frames (`--wait`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CnWaitArg {
+    /// Asleep until shortly before each PReq is due, then polling until it is there.
+    Anticipate,
+    /// Asleep until a frame wakes the thread.
+    Sleep,
+    /// Polling without ever sleeping.
+    Spin,
+}
+
 /// Options of `motus epl cn`.
 #[derive(Debug, Args)]
 pub struct EplCnArgs {
@@ -34,9 +45,20 @@ pub struct EplCnArgs {
     /// Node ID (1-239).
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=239))]
     pub node: u8,
-    /// Poll the link without sleeping (one busy core): no wake-up latency between the PReq
-    /// and the PRes, the fallback when SCHED_FIFO is not available.
+    /// How the node's thread waits for frames: sleep (asleep until a frame wakes it: no CPU
+    /// between frames), anticipate (asleep until shortly before each PReq is due, polling the
+    /// link from 150 µs before until 250 µs after: no wake-up by the frame; not on a CPU
+    /// shared with the MN, whose SoC it would hold up), or spin (polls without ever
+    /// sleeping: one busy core).
+    #[arg(long, value_enum, default_value_t = CnWaitArg::Sleep)]
+    pub wait: CnWaitArg,
+    /// Pin the node's thread to this CPU: best the one where the segment's frames arrive
+    /// (the NIC's interrupt; on a veth segment the MN's CPU, CPU 1 for openPOWERLINK's Linux
+    /// demos), so that the PReq wakes it without crossing CPUs.
     #[arg(long)]
+    pub cpu: Option<usize>,
+    /// The same as `--wait spin`.
+    #[arg(long, conflicts_with = "wait")]
     pub spin: bool,
     /// Real-time scheduling of the node's thread: auto (SCHED_FIFO and locked memory when
     /// permitted, else nice), nice, or off.

@@ -23,10 +23,16 @@
 //! `scripts/realtime.sh` (target: 0 resets, turnaround p99 < 100 us) and not asserted; what
 //! is asserted is that the MN boots and configures the CN, and that after every reset the CN
 //! is booted again and OPERATIONAL at the end of the hold. The CN's PReq -> PRes turnaround
-//! (p50/p99/max) is printed. `MOTUS_OPLK_CN_SPIN=1` runs the CN with `--spin`; `MOTUS_OPLK_VERBOSE=1` prints
+//! (p50/p99/max) is printed. The CN runs with `--cpu 1` (`MOTUS_OPLK_CN_CPU=<n>` another
+//! CPU, `none` unpinned): openPOWERLINK's Linux demos bind all their threads to CPU 1, and a
+//! CN there is woken by the PReq on its own CPU; unpinned on the 2-core VM it was sometimes
+//! not running for 4-8 ms after the PReq arrived (the idle CPU it slept on ran it only at its
+//! next timer tick), 1-5 resets in 60 s, against none pinned. `MOTUS_OPLK_CN_WAIT=<mode>`
+//! passes `--wait` (sleep, anticipate, spin); `MOTUS_OPLK_VERBOSE=1` prints
 //! the logs; `MOTUS_OPLK_KEEP=<dir>` keeps them (and with `MOTUS_OPLK_CAPTURE=1` the CN's
 //! traffic, `cn.pcapng`, taken by `dumpcap`); `MOTUS_OPLK_MN_FIFO=<prio>` runs the MN under `chrt -f <prio>`. On a 2-core
-//! host `--spin` starves the MN (the spinning SCHED_FIFO thread takes a core): not the
+//! host `--wait spin` starves the MN (the spinning SCHED_FIFO thread takes a core), and on
+//! the MN's CPU so does `--wait anticipate` (its polling holds up the MN's SoC): not the
 //! default.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
@@ -80,8 +86,16 @@ fn run_with(cdc: &str, tag: &str, policy: Hold, extra_cn_args: &str) {
     let unique = std::process::id() % 10_000;
     let (mnp, cnp) = (format!("m{unique}{tag}"), format!("c{unique}{tag}"));
     let mut cn_args = format!("--realtime auto {extra_cn_args}");
-    if std::env::var_os("MOTUS_OPLK_CN_SPIN").is_some() {
-        cn_args.push_str(" --spin");
+    // openPOWERLINK's Linux demos bind all their threads to CPU 1: the CN's thread goes there
+    // too, where the MN's frames arrive (see the module documentation).
+    match std::env::var("MOTUS_OPLK_CN_CPU") {
+        Ok(v) if v == "none" => {}
+        Ok(v) => cn_args.push_str(&format!(" --cpu {v}")),
+        Err(_) if motus_realtime::affinity::allowed_cpus().contains(&1) => cn_args.push_str(" --cpu 1"),
+        Err(_) => {}
+    }
+    if let Ok(wait) = std::env::var("MOTUS_OPLK_CN_WAIT") {
+        cn_args.push_str(&format!(" --wait {wait}"));
     }
     let cdc_path = oplk.join("cdc").join(cdc).to_string_lossy().into_owned();
     let mut rig = Rig::start(

@@ -37,10 +37,12 @@
 //! crate sets: [`mod@slice`] is the one module with `unsafe`.
 #![deny(unsafe_code)]
 
+pub mod affinity;
 pub mod mailbox;
 pub mod slice;
 pub mod wake_latency;
 
+pub use affinity::{pin_current_thread, AffinityError};
 pub use mailbox::{mailbox, MailboxReceiver, MailboxSender};
 
 use std::fmt;

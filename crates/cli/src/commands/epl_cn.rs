@@ -6,11 +6,13 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context, Result};
 use motus_clock::SystemClock;
-use motus_epl::node::cn::{CnEvent, CnRuntimeConfig, CnRuntimeStats, ControlledNode, ControlledNodeRuntime};
+use motus_epl::node::cn::{
+    CnEvent, CnRuntimeConfig, CnRuntimeStats, CnWait, ControlledNode, ControlledNodeRuntime,
+};
 use motus_epl::open_link;
 use motus_epl_protocol::{DeviceIdentity, ObjectDictionary};
 
-use crate::cli_epl::EplCnArgs;
+use crate::cli_epl::{CnWaitArg, EplCnArgs};
 
 fn us(ns: u64) -> f64 {
     ns as f64 / 1000.0
@@ -89,6 +91,9 @@ pub fn run(a: EplCnArgs) -> Result<()> {
             bail!("--seconds must be a positive number, got {s}");
         }
     }
+    if let Some(cpu) = a.cpu {
+        motus_realtime::affinity::check_cpu(cpu).context("--cpu")?;
+    }
     // Read before anything else happens, so that a bad file stops at once.
     let from_file = match a.od.as_deref() {
         Some(path) => Some((path, dictionary_from_file(path, a.node)?)),
@@ -112,13 +117,23 @@ pub fn run(a: EplCnArgs) -> Result<()> {
     };
     let mut node = ControlledNode::new(a.node, link.mac(), od, clock.now())?;
     node.set_reset_time(Duration::from_millis(a.reset_ms));
+    let wait = match (a.spin, a.wait) {
+        (true, _) | (false, CnWaitArg::Spin) => CnWait::Spin,
+        (false, CnWaitArg::Sleep) => CnWait::Sleep,
+        (false, CnWaitArg::Anticipate) => CnWait::Anticipate,
+    };
     eprintln!(
-        "POWERLINK CN {} on {}{}; Ctrl-C to stop",
+        "POWERLINK CN {} on {}{}{}; Ctrl-C to stop",
         a.node,
         link.describe(),
-        if a.spin { ", busy polling" } else { "" }
+        match wait {
+            CnWait::Spin => ", busy polling",
+            CnWait::Anticipate => ", polling around each PReq",
+            CnWait::Sleep => ", woken by frames",
+        },
+        a.cpu.map(|c| format!(", pinned to CPU {c}")).unwrap_or_default()
     );
-    let config = CnRuntimeConfig { spin: a.spin, ..CnRuntimeConfig::default() };
+    let config = CnRuntimeConfig { wait, cpu: a.cpu, ..CnRuntimeConfig::default() };
     let rt = ControlledNodeRuntime::start(node, link, clock, config).context("cannot start the CN thread")?;
     let stop = super::stop_flag()?;
     let until = a.seconds.map(|s| Instant::now() + Duration::from_secs_f64(s));

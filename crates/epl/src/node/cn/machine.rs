@@ -430,7 +430,7 @@ impl ControlledNode {
     }
 
     /// The cycle length in effect (0x1006 at the last reset, at least 1 µs).
-    fn cycle_len(&self) -> Duration {
+    pub fn cycle_len(&self) -> Duration {
         self.cycle
     }
 

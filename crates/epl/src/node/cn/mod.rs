@@ -31,17 +31,21 @@
 //!     a PReq without decoding it; the PReq payload is applied through the RPDO mapping in
 //!     OPERATIONAL when RD is set and the PDO version's main nibble matches 0x1400/2.
 //! * [`ControlledNodeRuntime`]: runs a [`ControlledNode`] on an [`crate::EthLink`] in a
-//!   thread of its own, promoted as a cyclic real-time thread, with PReq -> PRes turnaround
+//!   thread of its own, promoted as a cyclic real-time thread, waiting for frames asleep,
+//!   by anticipatory polling ([`Anticipation`]: polls only around the PReq's due time) or
+//!   busy polling ([`CnWait`]), with PReq -> PRes turnaround
 //!   statistics; [`serve_frame`] is how it serves one frame, for a loop that embeds a node
 //!   (the supervisor as a safety node).
 
+mod anticipation;
 mod machine;
 mod runtime;
 #[cfg(test)]
 mod tests;
 
+pub use anticipation::{Anticipation, WaitStep, MAX_MISSED_CYCLES};
 pub use machine::{
     CnCounters, CnError, CnEvent, ControlledNode, StateCause, MAX_ASYNC_QUEUE, MAX_STATUS_ENTRIES,
     PR_GENERIC, REANNOUNCE_AFTER,
 };
-pub use runtime::{serve_frame, CnRuntimeConfig, CnRuntimeStats, ControlledNodeRuntime, Served};
+pub use runtime::{serve_frame, CnRuntimeConfig, CnRuntimeStats, CnWait, ControlledNodeRuntime, Served};

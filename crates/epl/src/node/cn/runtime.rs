@@ -9,12 +9,15 @@
 //! (the link's receive time stamp) to the return of the PRes `send` is the turnaround,
 //! kept for the last [`SampleWindow::CAPACITY`] PReq.
 //!
-//! Waiting for frames: by default the thread sleeps in the link's `recv` (on a raw socket a
-//! `ppoll` with a nanosecond time-out: the PReq wakes the thread, which costs the kernel's
-//! wake-up latency). With [`CnRuntimeConfig::spin`] it polls the link without sleeping
-//! (`recv` with a zero time-out in a loop: one busy core, no wake-up latency): the fallback
-//! when real-time scheduling is not available and the MN's PRes time-out is short. The spin
-//! loop is bounded by the system clock, so a virtual clock never makes it hang.
+//! Waiting for frames ([`CnWait`]): with [`CnWait::Sleep`] the thread sleeps in the link's
+//! `recv` (on a raw socket a `ppoll` with a nanosecond time-out: the PReq wakes the thread,
+//! which costs the kernel's wake-up latency, and on a virtual machine such a wake-up across
+//! CPUs was sometimes late by milliseconds). With [`CnWait::Anticipate`] it sleeps until
+//! shortly before the next PReq is due and polls the link from then until the PReq is there
+//! ([`Anticipation`]): no wake-up by the frame, at the cost of the polling window each
+//! cycle. With [`CnWait::Spin`] it polls the link without sleeping (`recv` with a zero
+//! time-out in a loop: one busy core). Polling is bounded by the system clock, so a virtual
+//! clock never makes it hang.
 //!
 //! Time comes from the [`SharedClock`] given to [`ControlledNodeRuntime::start`] (the node's
 //! `now`, time-outs, sleeps after a receive error).
@@ -30,6 +33,7 @@ use motus_clock::{Clock, SharedClock};
 use motus_epl_protocol::NmtState;
 use motus_realtime::ThreadClass;
 
+use super::anticipation::{Anticipation, WaitStep};
 use super::machine::{CnCounters, CnEvent, ControlledNode};
 use crate::sim::stats::{Percentiles, SampleWindow};
 use crate::transport::{EthLink, MAX_FRAME};
@@ -40,18 +44,35 @@ const MAX_WAIT: Duration = Duration::from_millis(5);
 /// (and counted) until they are taken.
 pub const EVENT_QUEUE: usize = 4096;
 
+/// How the node's thread waits for frames (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CnWait {
+    /// Sleep in `recv` until a frame wakes the thread (the default: no CPU while idle).
+    #[default]
+    Sleep,
+    /// Sleep until shortly before the next PReq is due, then poll the link until it is
+    /// there ([`Anticipation::host_default`]'s window in every cycle with PReqs).
+    Anticipate,
+    /// Poll the link without ever sleeping (one busy core).
+    Spin,
+}
+
 /// How a [`ControlledNodeRuntime`] runs.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct CnRuntimeConfig {
-    /// Poll the link without sleeping (busy polling; see the module documentation).
-    pub spin: bool,
+    /// How the thread waits for frames.
+    pub wait: CnWait,
     /// The class the thread is promoted to (default [`ThreadClass::Cyclic`]).
     pub class: ThreadClass,
+    /// The CPU the thread is pinned to (`None`: wherever the scheduler puts it). Best the
+    /// CPU where the segment's frames arrive (the NIC's interrupt, or on a veth segment the
+    /// MN's CPU): the PReq then wakes the thread without crossing CPUs.
+    pub cpu: Option<usize>,
 }
 
 impl Default for CnRuntimeConfig {
     fn default() -> Self {
-        Self { spin: false, class: ThreadClass::Cyclic }
+        Self { wait: CnWait::Sleep, class: ThreadClass::Cyclic, cpu: None }
     }
 }
 
@@ -100,6 +121,12 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
+/// Whether the MN polls a CN in `state` with PReqs (PRE_OPERATIONAL_2, READY_TO_OPERATE,
+/// OPERATIONAL).
+fn polled_by_preq(state: NmtState) -> bool {
+    matches!(state, NmtState::PreOperational2 | NmtState::ReadyToOperate | NmtState::Operational)
+}
+
 /// Receives a frame, spinning on the link until `timeout` has passed on the system clock.
 fn spin_recv(link: &dyn EthLink, buf: &mut [u8], timeout: Duration) -> io::Result<Option<(usize, Instant)>> {
     let until = Instant::now() + timeout;
@@ -117,6 +144,8 @@ fn spin_recv(link: &dyn EthLink, buf: &mut [u8], timeout: Duration) -> io::Resul
 /// What [`serve_frame`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Served {
+    /// The frame was a PReq for the node, answered with a PRes (sent or not).
+    pub preq: bool,
     /// The frame was a PReq for the node, answered with a PRes whose `send` returned then.
     pub pres_sent_at: Option<Instant>,
     /// Frames that could not be sent.
@@ -150,6 +179,7 @@ pub fn serve_frame(node: &mut ControlledNode, link: &dyn EthLink, clock: &dyn Cl
             tracing::debug!("frame not sent: {e}");
         }
     }
+    served.preq = answered;
     served
 }
 
@@ -167,22 +197,42 @@ struct Worker {
 impl Worker {
     fn run(self) {
         motus_realtime::promote_current_thread(self.config.class);
+        if let Some(cpu) = self.config.cpu {
+            if let Err(e) = motus_realtime::pin_current_thread(cpu) {
+                tracing::warn!("{e}");
+            }
+        }
         if let Err(e) = nix::sys::prctl::set_timerslack(1) {
             tracing::debug!("timer slack: {e}");
         }
         let mut buf = vec![0u8; MAX_FRAME];
+        let mut anticipation = Anticipation::host_default();
         while !self.stop.load(Ordering::Relaxed) {
             let now = self.clock.now();
-            let deadline = lock(&self.node).next_deadline();
+            let (deadline, cycle) = {
+                let node = lock(&self.node);
+                (node.next_deadline(), node.cycle_len())
+            };
             let wait = deadline.map_or(MAX_WAIT, |d| d.saturating_duration_since(now)).min(MAX_WAIT);
-            let got = if self.config.spin {
-                spin_recv(&*self.link, &mut buf, wait)
-            } else {
-                self.link.recv(&mut buf, wait)
+            let step = match self.config.wait {
+                CnWait::Sleep => WaitStep::Sleep(wait),
+                CnWait::Spin => WaitStep::Poll(wait),
+                CnWait::Anticipate => anticipation.plan(now, cycle, wait),
+            };
+            let got = match step {
+                WaitStep::Poll(d) => spin_recv(&*self.link, &mut buf, d),
+                WaitStep::Sleep(d) => self.link.recv(&mut buf, d),
             };
             let mut node = lock(&self.node);
             match got {
-                Ok(Some((n, at))) => self.on_frame(&mut node, buf.get(..n).unwrap_or_default(), at),
+                Ok(Some((n, at))) => {
+                    if self.on_frame(&mut node, buf.get(..n).unwrap_or_default(), at) {
+                        anticipation.on_preq(at);
+                    }
+                    if !polled_by_preq(node.state()) {
+                        anticipation.forget();
+                    }
+                }
                 Ok(None) => {}
                 Err(e) => {
                     self.shared.recv_errors.fetch_add(1, Ordering::Relaxed);
@@ -197,7 +247,8 @@ impl Worker {
         }
     }
 
-    fn on_frame(&self, node: &mut ControlledNode, raw: &[u8], at: Instant) {
+    /// Serves one frame; whether it was a PReq for the node.
+    fn on_frame(&self, node: &mut ControlledNode, raw: &[u8], at: Instant) -> bool {
         let served = serve_frame(node, &*self.link, &*self.clock, raw);
         if let Some(sent) = served.pres_sent_at {
             let ns = sent.saturating_duration_since(at).as_nanos();
@@ -205,6 +256,7 @@ impl Worker {
             self.shared.pres_sent.fetch_add(1, Ordering::Relaxed);
         }
         self.shared.send_errors.fetch_add(served.send_errors, Ordering::Relaxed);
+        served.preq
     }
 
     fn publish(&self, node: &mut ControlledNode) {
