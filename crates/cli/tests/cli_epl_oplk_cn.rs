@@ -1,7 +1,8 @@
 //! Interop: openPOWERLINK's Managing Node (`bin/demo_mn_console`, with its demo concise DCF
 //! `demo_3cn_50ms.cdc` and then `demo_3cn_1ms.cdc`) boots `motus epl cn --node 1`,
-//! configures it by SDO and keeps it OPERATIONAL (issue 20, acceptance 1 and 5), also with
-//! the CN's dictionary read from openPOWERLINK's XDD (`--od`).
+//! configures it by SDO and keeps it OPERATIONAL (issue 20, acceptance 1 and 5): at 50 ms
+//! with the CN's dictionary read from openPOWERLINK's XDD (`--od`), at 1 ms with the built-in
+//! one.
 //!
 //! Needs root and the openPOWERLINK directory (`MOTUS_OPLK_DIR`, default
 //! `<workspace>/../shared/oracles/openpowerlink`); skipped with a printed reason otherwise.
@@ -212,13 +213,11 @@ fn run_with(cdc: &str, tag: &str, policy: Hold, extra_cn_args: &str) {
     }
 }
 
-#[test]
-fn openpowerlink_mn_keeps_motus_cn_operational_50ms() {
-    run("demo_3cn_50ms.cdc", "a", Hold::Strict);
-}
-
-/// The CN's dictionary read from openPOWERLINK's own device description (`--od`): the MN
-/// configures and holds it as the built-in one.
+/// At 50 ms, the CN's dictionary read from openPOWERLINK's own device description
+/// (`--od`): the MN configures and holds it. The built-in dictionary equals it entry for
+/// entry but for documented deviations (`motus-epl-protocol`'s `cn_profile` test) and is
+/// booted, configured and held at 1 ms below, so one 50 ms boot (12-17 s of the suite,
+/// alone on the machine) serves both.
 #[test]
 fn openpowerlink_mn_keeps_a_motus_cn_from_its_xdd_operational_50ms() {
     let xdd = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
