@@ -210,9 +210,21 @@ fn demo_cell_runs_every_family_and_survives_a_killed_simulator() {
     for h in rc.device_handles() {
         rec.add(h);
     }
-    let first = rec.poll(Instant::now());
-    let connected = first.iter().filter(|e| matches!(e, DeviceEvent::Connected { .. })).count();
-    assert_eq!(connected, cell.devices.len(), "{first:?}");
+    // Every device connects. A first attempt that found a device slow to answer (beside CPU
+    // hogs, the PS1A line once missed its 21 ms reply time-out three times) is retried after
+    // its back-off: a liveness bound, not a speed figure.
+    let t0 = Instant::now();
+    let (mut up, mut events) = (BTreeSet::new(), Vec::new());
+    while up.len() < cell.devices.len() {
+        for e in rec.poll(Instant::now()) {
+            if let DeviceEvent::Connected { device, .. } = &e {
+                up.insert(device.clone());
+            }
+            events.push(e);
+        }
+        assert!(t0.elapsed() < Duration::from_secs(30), "{events:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
     assert!(faults.faulted().is_empty(), "{:?}", faults.faulted());
 
     // Chaos: kill the PS1A simulator during motion; another family keeps moving.

@@ -263,7 +263,11 @@ function renderProgram(p) {
   if (!S.overrideBusy && document.activeElement !== $('program-override')) {
     $('program-override').value = p.override_percent; $('program-override-value').textContent = Math.round(p.override_percent);
   }
-  $('program-single-block').checked = p.single_block;
+  // The station's single-block setting, unless the user's change has not reached it yet
+  // (a status fetched before the change would undo the click).
+  const wanted = S.singleBlockWanted;
+  if (wanted && (p.single_block === wanted.on || Date.now() > wanted.until)) S.singleBlockWanted = null;
+  if (!S.singleBlockWanted) $('program-single-block').checked = p.single_block;
   pollExecuted(p);
 }
 
@@ -598,8 +602,13 @@ function wire() {
     try { await act('Override', () => api('POST', '/api/programs/override', { percent: Number($('program-override').value) })); }
     finally { S.overrideBusy = false; }
   });
-  $('program-single-block').addEventListener('change', () =>
-    act('Single block', () => api('POST', '/api/programs/single-block', { on: $('program-single-block').checked })));
+  $('program-single-block').addEventListener('change', () => {
+    const on = $('program-single-block').checked;
+    S.singleBlockWanted = { on, until: Date.now() + 3000 };
+    // Refused (act says why): the next status shows the station's setting again.
+    act('Single block', () => api('POST', '/api/programs/single-block', { on }))
+      .then((r) => { if (r === null) S.singleBlockWanted = null; });
+  });
   $('mdi-run').addEventListener('click', () => {
     S.exec.settled = false;
     act('MDI', () => api('POST', '/api/mdi', { line: $('mdi-line').value })).catch(() => {});
