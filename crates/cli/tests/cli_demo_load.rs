@@ -282,10 +282,18 @@ impl Report {
         println!("juggler supervisor trips (a real-time figure: printed, not asserted): {trips}");
         if self.default_policy {
             let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/realtime/from-suite");
-            let figures = format!(
+            let mut figures = format!(
                 "REALTIME suite.demo_load.juggler_trips {trips} count\nREALTIME suite.demo_load.estop.p99 {:.1} ms\n",
                 self.estop_p99.as_secs_f64() * 1e3
             );
+            // Each trip's diagnosis, for scripts/realtime.sh to print under its table (CI
+            // keeps no output of a passing test).
+            for trip in &self.juggler_trips {
+                figures.push_str(&format!(
+                    "REALTIME-NOTE suite.demo_load.juggler_trips {}\n",
+                    trip.replace('\n', " ")
+                ));
+            }
             if let Err(e) = std::fs::create_dir_all(&dir)
                 .and_then(|()| std::fs::write(dir.join("demo_load.log"), figures))
             {

@@ -5,7 +5,8 @@
 //! type 1: statusword + position after every SYNC).
 //!
 //! * Criterion measures one cycle by hand: SYNC sent, wait for the three TPDO2 replies.
-//! * Then the SYNC producer runs for 10 s (5 s with `BENCH_QUICK` set) and the bench
+//! * Then the SYNC producer runs for 10 s (5 s with `BENCH_QUICK` set; `MOTUS_SYNC_SECONDS`
+//!   sets it) and the bench
 //!   prints the period and its jitter (|period − 1 ms|, from the instants the producer
 //!   handed SYNC to the transport) and how many cycles got all three TPDO2 replies before
 //!   the next SYNC.
@@ -147,11 +148,16 @@ fn main() {
     }
     self_check();
     let mut c = Criterion::default().configure_from_args();
-    let run_for = if std::env::var_os("BENCH_QUICK").is_some() {
-        Duration::from_secs(5)
-    } else {
-        Duration::from_secs(10)
-    };
+    let run_for = std::env::var("MOTUS_SYNC_SECONDS")
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .map(Duration::from_secs_f64)
+        .unwrap_or(if std::env::var_os("BENCH_QUICK").is_some() {
+            Duration::from_secs(5)
+        } else {
+            Duration::from_secs(10)
+        });
 
     let hub = Hub::start(HubConfig {
         listen: "127.0.0.1:0".parse().unwrap(),

@@ -497,15 +497,21 @@ impl MachineBackend for StationMachine {
                 PredictedReach { axis: axis.clone(), stop_position, distance }
             })
             .collect();
+        let safe_to_run = s.safe_to_run == Some(true) && !s.held && !estop;
+        // Why it is not safe or held; nothing while it is safe (the snapshot keeps why
+        // SafeToRun fell last, e.g. "no data" from the start-up, which read as a fault beside
+        // SafeToRun).
         let diagnosis = match (&s.integrity, &s.diagnosis) {
+            _ if estop => Some(estop_diagnosis()),
+            _ if safe_to_run => None,
             (Err(e), _) => Some(e.clone()),
             (Ok(()), d) => d.clone(),
         };
         SafetyView {
-            safe_to_run: s.safe_to_run == Some(true) && !s.held && !estop,
+            safe_to_run,
             held: s.held || estop,
             estop,
-            diagnosis: if estop { Some(estop_diagnosis()) } else { diagnosis },
+            diagnosis,
             rules_name: self
                 .shared
                 .config

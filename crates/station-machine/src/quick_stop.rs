@@ -25,8 +25,8 @@ pub(crate) const ESTOP_CONFIRM_WAIT: Duration = Duration::from_millis(250);
 /// How often an idle worker looks at the station's stop flag.
 const IDLE_CHECK: Duration = Duration::from_millis(500);
 
-/// A worker's answer: the axis index and the error of its quick stop, if any.
-type Done = (usize, Option<String>);
+/// A worker's answer: the axis index, the error of its quick stop if any, and when it ended.
+type Done = (usize, Option<String>, Instant);
 
 /// The workers' order channels, one per axis (in the order of `Shared::axes`).
 pub(crate) struct QuickStoppers {
@@ -66,11 +66,17 @@ impl QuickStoppers {
             }
         }
         drop(tx);
-        let deadline = Instant::now() + ESTOP_CONFIRM_WAIT;
+        let pressed = Instant::now();
+        let deadline = pressed + ESTOP_CONFIRM_WAIT;
+        let mut slowest: Option<(usize, Duration)> = None;
         while pending > 0 {
             match rx.recv_timeout(deadline.saturating_duration_since(Instant::now())) {
-                Ok((i, err)) => {
+                Ok((i, err, ended)) => {
                     pending -= 1;
+                    let took = ended.saturating_duration_since(pressed);
+                    if slowest.is_none_or(|(_, t)| took > t) {
+                        slowest = Some((i, took));
+                    }
                     if let (Some(e), Some(a)) = (err, shared.axes.get(i)) {
                         tracing::warn!(axis = %a.view.id, "quick stop: {e}");
                     }
@@ -82,6 +88,16 @@ impl QuickStoppers {
                     break;
                 }
             }
+        }
+        if let Some((i, took)) = slowest {
+            let axis = shared.axes.get(i).map_or("?", |a| a.view.id.as_str());
+            tracing::info!(
+                axes = self.orders.len(),
+                took_ms = pressed.elapsed().as_secs_f64() * 1e3,
+                slowest = axis,
+                slowest_ms = took.as_secs_f64() * 1e3,
+                "E-stop: quick stops sent"
+            );
         }
     }
 }
@@ -96,6 +112,6 @@ fn worker(s: &Shared, i: usize, orders: &Receiver<Sender<Done>>) {
         };
         let Some(a) = s.axes.get(i) else { return };
         let r = lock(&a.axis).execute(&AxisCommand::QuickStop);
-        let _ = reply.send((i, r.err().map(|e| e.to_string())));
+        let _ = reply.send((i, r.err().map(|e| e.to_string()), Instant::now()));
     }
 }

@@ -90,6 +90,8 @@ fn a_changed_juggler_drive_parameter_blocks_the_juggler_and_is_named() {
     });
     let s = wait_safe(&admin, Duration::from_secs(30));
     assert_eq!(s["rules_fingerprint"], before["rules_fingerprint"]);
+    // Safe: no diagnosis (the blocked one is not shown beside SafeToRun).
+    assert!(s["diagnosis"].is_null(), "{s}");
     admin.wait_axis("thrower", Duration::from_secs(30), "juggling again", |a| {
         a["moving"] == true && a["fault"].is_null()
     });

@@ -70,6 +70,10 @@ pub enum SegmentError {
     /// A thread could not be spawned.
     #[error("segment: spawning a thread: {0}")]
     Spawn(#[from] std::io::Error),
+    /// A thread cannot be pinned to the CPU asked for ([`SegmentBuilder::pin_mn`],
+    /// [`SegmentBuilder::pin_spinning_cns`]).
+    #[error("segment: {0}")]
+    Affinity(#[from] motus_realtime::affinity::AffinityError),
 }
 
 /// Builds a [`Segment`].
@@ -81,6 +85,8 @@ pub struct SegmentBuilder {
     config: MnConfig,
     program: Option<Box<dyn MotionProgram>>,
     spin_cns: bool,
+    mn_cpu: Option<usize>,
+    spinning_cns_cpu: Option<usize>,
     clock: Option<SharedClock>,
 }
 
@@ -133,6 +139,23 @@ impl SegmentBuilder {
         self
     }
 
+    /// Pins the MN's thread to `cpu`. With [`MnConfig::spin_for_pres`] and
+    /// [`SegmentBuilder::spin_cns`] two threads poll without sleeping; left to the scheduler
+    /// they now and then share one core for milliseconds (every PRes of those cycles late):
+    /// pinned to two CPUs they do not (`docs/decisions.md`). Checked at
+    /// [`SegmentBuilder::start`].
+    pub fn pin_mn(mut self, cpu: usize) -> Self {
+        self.mn_cpu = Some(cpu);
+        self
+    }
+
+    /// Pins the thread that serves the CNs by polling ([`SegmentBuilder::spin_cns`]) to
+    /// `cpu` (ignored when the CNs do not spin). Checked at [`SegmentBuilder::start`].
+    pub fn pin_spinning_cns(mut self, cpu: usize) -> Self {
+        self.spinning_cns_cpu = Some(cpu);
+        self
+    }
+
     /// Runs the segment on `clock` instead of the system clock: the MN's cycle, its time-outs
     /// and its statistics, and the CNs' threads if any (an in-process segment on the same
     /// clock: [`crate::transport::MemHub::with_clock`]). The segment never busy-waits on a
@@ -179,6 +202,10 @@ impl SegmentBuilder {
             config.spin_for_pres = false;
         }
         let spin_cns = self.spin_cns && spinning_allowed;
+        let spinning_cns_cpu = self.spinning_cns_cpu.filter(|_| spin_cns);
+        for cpu in self.mn_cpu.iter().chain(&spinning_cns_cpu) {
+            motus_realtime::affinity::check_cpu(*cpu)?;
+        }
         let stop = Arc::new(AtomicBool::new(false));
         let mut threads = Vec::new();
         let mut cns = Vec::new();
@@ -214,7 +241,10 @@ impl SegmentBuilder {
                     .name("epl-cns".into())
                     // Not promoted: a thread that polls without sleeping under SCHED_FIFO would
                     // take its CPU from every normal thread (motus_realtime).
-                    .spawn(move || cn::run_spinning(spinning, &stop))?,
+                    .spawn(move || {
+                        pin_or_warn(spinning_cns_cpu, "epl-cns");
+                        cn::run_spinning(spinning, &stop)
+                    })?,
             );
         }
         let mn_shared = Arc::new(mn::MnShared::default());
@@ -228,9 +258,11 @@ impl SegmentBuilder {
             Arc::clone(&mn_shared),
         );
         let stop_mn = Arc::clone(&stop);
+        let mn_cpu = self.mn_cpu;
         let started =
             motus_clock::spawn(&clock, std::thread::Builder::new().name("epl-mn".into()), move || {
                 motus_realtime::promote_current_thread(motus_realtime::ThreadClass::Cyclic);
+                pin_or_warn(mn_cpu, "epl-mn");
                 mn.run(&stop_mn)
             });
         match started {
@@ -244,6 +276,16 @@ impl SegmentBuilder {
             }
         }
         Ok(Segment { stop, threads, attached, mn: mn_shared, cns, clock })
+    }
+}
+
+/// Pins the calling thread to `cpu` if given (checked before the thread started: a failure
+/// here is the kernel's, logged, and the thread runs unpinned).
+fn pin_or_warn(cpu: Option<usize>, thread: &str) {
+    if let Some(cpu) = cpu {
+        if let Err(e) = motus_realtime::affinity::pin_current_thread(cpu) {
+            tracing::warn!(thread, error = %e, "segment: thread not pinned");
+        }
     }
 }
 

@@ -163,6 +163,14 @@ pub fn run_scenario(
     for ((node, link), axis) in NODES.iter().zip(cn_links).zip(&axes) {
         b = b.drive(*node, link, drive_params(axis));
     }
+    // The two polling threads on two CPUs, when there are two: the CNs on the first, the MN
+    // on the second, where this VM's kernel does its periodic work (an interruption delays
+    // the MN's cycle but loses the CNs' PRes: docs/decisions.md).
+    if let (true, [first, second, ..]) =
+        (config.spin_for_pres, motus_realtime::affinity::allowed_cpus().as_slice())
+    {
+        b = b.pin_mn(*second).pin_spinning_cns(*first);
+    }
     let t0 = Instant::now();
     let segment = b.start().unwrap();
     // Boot-up: reduced PreOp1 cycles, IdentRequests, PreOp2, NMT commands, OPERATIONAL
