@@ -14,7 +14,7 @@ use motus_station::devices::DeviceError;
 
 use crate::axis::{put, Slot};
 use crate::sim::{serve_pty, SimThread};
-use crate::{link_target, CellError, DeviceCtl};
+use crate::{CellError, DeviceCtl};
 
 /// The simulated modules of a link (addresses of its simulated PS1A devices).
 pub(crate) fn simulate(cell: &Cell, link: &Link, baud: u32) -> Result<Option<SimThread>, CellError> {
@@ -42,11 +42,17 @@ pub(crate) fn simulate(cell: &Cell, link: &Link, baud: u32) -> Result<Option<Sim
     Ok(Some(sim))
 }
 
-/// The host side of one PS1A link: one bus, reopened when the port behind the path changed.
+/// The host side of one PS1A link: one bus for the link's life, shared by its modules.
+///
+/// The bus is opened once and kept: its serial link closes the port after an IO error (a
+/// restarted simulator, an unplugged adapter) and reopens the path at the next transaction.
+/// A second bus on the same path would find the port taken (ports are opened exclusively):
+/// the first one, reopened by a health check of another module, held it, and the module that
+/// needed a new connect after the restart never came back.
 pub(crate) struct Ps1aLink {
     path: String,
     baud: u32,
-    bus: Mutex<Option<(Option<PathBuf>, Ps1aBus)>>,
+    bus: Mutex<Option<Ps1aBus>>,
 }
 
 impl Ps1aLink {
@@ -54,19 +60,16 @@ impl Ps1aLink {
         Arc::new(Self { path: link.uri.clone(), baud, bus: Mutex::new(None) })
     }
 
-    /// The bus; reopened if never opened or if the path now names another port.
+    /// The bus, opened at the first call that finds the port.
     fn bus(&self) -> Result<Ps1aBus, DeviceError> {
         let mut g = self.bus.lock().unwrap_or_else(PoisonError::into_inner);
-        let target = link_target(&self.path);
-        if let Some((t, bus)) = g.as_ref() {
-            if *t == target {
-                return Ok(bus.clone());
-            }
+        if let Some(bus) = g.as_ref() {
+            return Ok(bus.clone());
         }
         let link = SerialLink::open(&self.path, self.baud)
             .map_err(|e| DeviceError::Link { link: self.path.clone(), reason: e.to_string() })?;
         let bus = Ps1aBus::new(Arc::new(BusMaster::new(Box::new(Traced::new(link)), BusConfig::default())));
-        *g = Some((target, bus.clone()));
+        *g = Some(bus.clone());
         Ok(bus)
     }
 }

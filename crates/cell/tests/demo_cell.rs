@@ -269,16 +269,17 @@ fn demo_cell_runs_every_family_and_survives_a_killed_simulator() {
     // Restart: the station reconnects without a restart of its own.
     rc.restart_simulator("ps1a-line").unwrap();
     let t0 = Instant::now();
-    let mut back = BTreeSet::new();
+    let (mut back, mut events) = (BTreeSet::new(), Vec::new());
     while back.len() < 4 {
         for e in rec.poll(Instant::now()) {
-            if let DeviceEvent::Connected { device, .. } = e {
-                back.insert(device);
+            if let DeviceEvent::Connected { device, .. } = &e {
+                back.insert(device.clone());
             }
+            events.push(e);
         }
         // A liveness bound: a reconnection attempt that failed on a loaded host waits out
         // its back-off before the next.
-        assert!(t0.elapsed() < Duration::from_secs(30), "reconnected only {back:?}");
+        assert!(t0.elapsed() < Duration::from_secs(30), "reconnected only {back:?}: {events:?}");
         std::thread::sleep(Duration::from_millis(50));
     }
     assert!(faults.faulted().is_empty(), "{:?}", faults.faulted());

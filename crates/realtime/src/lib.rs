@@ -38,6 +38,7 @@
 #![deny(unsafe_code)]
 
 pub mod affinity;
+pub mod ceiling;
 pub mod mailbox;
 pub mod slice;
 pub mod wake_latency;
@@ -381,6 +382,14 @@ pub fn demote_current_thread_for_web() {
 }
 
 fn apply_class(obtained: Obtained, class: ThreadClass) -> Result<(), SchedError> {
+    let applied = apply_class_policy(obtained, class);
+    if applied.is_ok() {
+        ceiling::record(ceiling::Role::Class(class));
+    }
+    applied
+}
+
+fn apply_class_policy(obtained: Obtained, class: ThreadClass) -> Result<(), SchedError> {
     match obtained {
         Obtained::Off => Ok(()),
         // On failure, fall back to the normal policy at nice 0 (what `Nice` gives), and report.
@@ -412,7 +421,9 @@ fn apply_class(obtained: Obtained, class: ThreadClass) -> Result<(), SchedError>
 fn apply_web(obtained: Obtained) -> Result<(), SchedError> {
     match obtained {
         Obtained::Off => Ok(()),
-        Obtained::Fifo(_) | Obtained::Nice => set_nice(WEB_NICE),
+        Obtained::Fifo(_) | Obtained::Nice => {
+            set_nice(WEB_NICE).inspect(|()| ceiling::record(ceiling::Role::Web))
+        }
     }
 }
 

@@ -182,6 +182,10 @@ impl BusMaster {
         let timeout = self.timeout_for(request.bytes.len(), request.reply_len);
         let idle_gap = self.line.wire_time(3) + Duration::from_millis(2);
         let mut guard = self.lock_inner();
+        // Whoever holds the line runs at the device class's priority until it lets go: a web
+        // or command thread kept off the CPU must not keep the line from a cyclic thread
+        // (motus_realtime::ceiling).
+        let ceiling = motus_realtime::ceiling::raise_to(motus_realtime::ThreadClass::Device);
         let inner = &mut *guard;
         let mut dev = DeviceStats { transactions: 1, ..DeviceStats::default() };
         let (mut tx, mut rx, mut garbage) = (0u64, 0u64, 0u64);
@@ -252,6 +256,7 @@ impl BusMaster {
             }
         }
         drop(guard);
+        drop(ceiling);
         if result.is_some() {
             dev.ok = 1;
         } else {
