@@ -109,6 +109,9 @@ fn home_and_move(rc: &RunningCell, name: &str, homes: bool, target: f64, tol: f6
 
 #[test]
 fn demo_cell_runs_every_family_and_survives_a_killed_simulator() {
+    // The cell's warnings (a simulated module's safety time-out, a serial port that failed)
+    // with the test's output: what a failure needs to be understood.
+    let _ = tracing_subscriber::fmt().with_test_writer().with_max_level(tracing::Level::WARN).try_init();
     let t_start = Instant::now();
     let dir = tempfile::tempdir().unwrap();
     let cell = demo_cell(dir.path());

@@ -91,13 +91,11 @@ impl Master {
                         clock.park_until(due);
                         continue;
                     }
-                    let left = due - now;
-                    // Sleep in slices (to notice stop), the last 200 µs by yielding.
-                    if left > Duration::from_micros(200) {
-                        clock.sleep((left - Duration::from_micros(200)).min(Duration::from_millis(20)));
-                    } else {
-                        std::thread::yield_now();
-                    }
+                    // Asleep to the deadline, in slices of at most 20 ms (to notice stop). No
+                    // spinning: under SCHED_FIFO a spinning thread keeps every normal thread
+                    // off its CPU, the kernel's workers that carry pty and loopback data
+                    // included (docs/decisions.md).
+                    clock.sleep((due - now).min(Duration::from_millis(20)));
                     continue;
                 }
                 if let Some(f) = schedule.poll(now) {
