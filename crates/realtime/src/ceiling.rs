@@ -19,12 +19,15 @@ use std::cell::Cell;
 use crate::{obtained, set_fifo, set_nice, Obtained, Policy, ThreadClass, WEB_NICE};
 
 /// What this thread was set to by [`crate::promote_current_thread`] or
-/// [`crate::demote_current_thread_for_web`] (unknown: read from `/proc` when needed).
+/// [`crate::demote_current_thread_for_web`], or read once from `/proc` ([`Role::Read`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Role {
     Unknown,
     Class(ThreadClass),
     Web,
+    /// Read from `/proc` at the first raise: how to give it back, or `None` when it cannot
+    /// be restored exactly (the thread is then left alone).
+    Read(Option<Restore>),
 }
 
 thread_local! {
@@ -38,7 +41,7 @@ pub(crate) fn record(role: Role) {
 
 /// How to give the ceiling back.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Restore {
+pub(crate) enum Restore {
     Fifo(u8),
     Nice(i8),
 }
@@ -85,26 +88,39 @@ fn raise_within(obtained: Obtained, class: ThreadClass) -> Ceiling {
     let Obtained::Fifo(levels) = obtained else { return none };
     let ceiling = levels.of(class);
     let restore = match ROLE.with(Cell::get) {
-        Role::Class(c) if levels.of(c) >= ceiling => return none,
         Role::Class(c) => Restore::Fifo(levels.of(c)),
         Role::Web => Restore::Nice(WEB_NICE),
-        Role::Unknown => match crate::current_thread_scheduling() {
-            Some(s) if s.policy == Policy::Fifo => {
-                let Ok(p) = u8::try_from(s.rt_priority) else { return none };
-                if p >= ceiling {
-                    return none;
-                }
-                Restore::Fifo(p)
-            }
-            Some(s) if s.policy == Policy::Normal && (s.nice == 0 || s.nice == i32::from(WEB_NICE)) => {
-                Restore::Nice(if s.nice == 0 { 0 } else { WEB_NICE })
-            }
-            _ => return none,
+        Role::Read(r) => match r {
+            Some(r) => r,
+            None => return none,
         },
+        // Read once per thread: the transactions after it take the paths above.
+        Role::Unknown => {
+            let read = read_restore();
+            record(Role::Read(read));
+            match read {
+                Some(r) => r,
+                None => return none,
+            }
+        }
     };
+    if matches!(restore, Restore::Fifo(p) if p >= ceiling) {
+        return none;
+    }
     match set_fifo(ceiling) {
         Ok(()) => Ceiling { restore: Some(restore), _not_send: std::marker::PhantomData },
         Err(_) => none,
+    }
+}
+
+/// How to restore the calling thread's scheduling as `/proc` shows it: `SCHED_FIFO` at its
+/// priority, or the normal policy at nice 0 or [`WEB_NICE`]; `None` otherwise.
+fn read_restore() -> Option<Restore> {
+    let s = crate::current_thread_scheduling()?;
+    match s.policy {
+        Policy::Fifo => u8::try_from(s.rt_priority).ok().map(Restore::Fifo),
+        Policy::Normal => i8::try_from(s.nice).ok().filter(|n| *n == 0 || *n == WEB_NICE).map(Restore::Nice),
+        _ => None,
     }
 }
 
