@@ -120,6 +120,7 @@ sdo.ratio.one_at_a_time|SDO rate ratio, one transfer at a time|>=|2.6|x|2.6-3.4x
 sdo.motus.peak|SDO rate, Motus master at its best|>=|100000|/s|100-199 k/s (decisions.md)
 sdo.motus.one_at_a_time|SDO rate, Motus master one transfer at a time|>=|14000|/s|14-20 k/s (decisions.md)
 suite.demo_load.juggler_trips|juggler supervisor trips, demo under 250 web clients (60 s in CI)|<=|0|count|0 in 5 runs (issue 18)
+suite.demo_browser.camera_fps|simulated camera frames/s received in the browser (demo)|>=|10|fps|15 drawn by the station (issue 22)
 suite.demo_load.estop.p99|E-stop answer p99, demo under 250 web clients|<=|100|ms|77-97 ms (issue 18)
 suite.oplk_cn_1ms.resets|openPOWERLINK MN 1 ms: resets of the Motus CN in the hold|<=|0|count|4-6 in CI unpinned; 0 in 3 local 60 s runs pinned|60
 suite.oplk_cn_1ms.resets_lost_pres|of which for a lost PRes (not the MN's own overrun)|<=|0|count|1-5 a minute unpinned (decisions.md)

@@ -610,6 +610,11 @@ pub struct DemoArgs {
     /// Keep the simulators running after the sequence until Ctrl-C (with --ps1a-sequence).
     #[arg(long)]
     pub stay: bool,
+    /// Write the demo cell into this new (or empty) directory and exit, to run it with
+    /// `motus serve --config DIR/demo-cell.toml`: the cell file, its programs, the juggler's
+    /// rules and drive parameters approved with a fresh administrator key (`DIR/data`).
+    #[arg(long, value_name = "DIR", conflicts_with = "ps1a_sequence")]
+    pub write_cell: Option<std::path::PathBuf>,
     /// Real-time priorities of the device and cyclic threads (docs/decisions.md): `auto` by
     /// default (SCHED_FIFO where permitted, else nice levels and a warning).
     #[arg(long, value_enum, default_value_t = crate::cli_station::RealtimeArg::Auto)]

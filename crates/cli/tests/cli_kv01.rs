@@ -48,7 +48,7 @@ fn session_moves_a_joint_and_a_later_command_reports_the_latched_time_out() {
     // The modules' safety time-out at 3 s instead of the arm's 700 ms: the session below must
     // not latch it when a loaded host stalls the processes (a liveness margin; the latch
     // itself is what the end of the test checks).
-    let _sim = SimProcess::start(
+    let (_sim, sim_log) = SimProcess::start_logged(
         &["sim", "kv01", "--link", &format!("pty:{port}"), "--arm", r#"{"cm":{"safety_timeout_ms":3000}}"#],
         "simulating the KV-01 arm",
     );
@@ -56,7 +56,7 @@ fn session_moves_a_joint_and_a_later_command_reports_the_latched_time_out() {
         .args(["kv01", port, "session", "--json"])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
-        .stderr(Stdio::null())
+        .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     {
@@ -65,20 +65,38 @@ fn session_moves_a_joint_and_a_later_command_reports_the_latched_time_out() {
         writeln!(stdin, "enable 2").unwrap();
         writeln!(stdin, "move 2=25").unwrap();
         writeln!(stdin, "voltages 2").unwrap();
+        writeln!(stdin, "wave 2").unwrap();
+        writeln!(stdin, "wave 2").unwrap();
     }
     let out = session.wait_with_output().unwrap();
     let text = String::from_utf8(out.stdout).unwrap();
     let lines: Vec<&str> = text.lines().collect();
+    // Failed commands are named, a repeated error is one short line, and the exit status
+    // says the session did not do everything it was asked.
+    assert!(lines[4].contains("`wave 2`") && lines[4].contains("unrecognized subcommand"), "{text}");
+    assert_eq!(lines[5], "error: `wave 2`: the same error as before", "{text}");
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(stderr.contains("3 of 6 session commands failed"), "{stderr}");
     assert!(lines[0].contains("refusing to release the brake before the drive is enabled"), "{text}");
     assert!(lines[1].contains("enabled, brake released"), "{text}");
     let joints: serde_json::Value = serde_json::from_str(lines[2]).unwrap();
     let a = joints[1]["angle_deg"].as_f64().unwrap();
     assert!((a - 25.0).abs() <= 0.1, "{a}");
     assert!(lines[3].contains("volts_24v"), "{text}");
-    // The session ended: 3 s later every module has latched "TO". A plain wait: any request
-    // meanwhile would renew the modules' communication and prevent the latch (the latch's
-    // timing is tested on virtual time in motus-kv01's tests).
-    std::thread::sleep(std::time::Duration::from_millis(3500));
+    // The session ended: 3 s later every module latches "TO". Waited for in the simulator's
+    // log, not by asking: any request meanwhile would renew the modules' communication and
+    // prevent the latch (a fixed sleep was too short beside CPU hogs, where the simulator's
+    // steps fall behind; the latch's timing is tested on virtual time in motus-kv01's tests).
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    let mut latched = 0;
+    while latched < 6 {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        let line = sim_log.recv_timeout(left).expect("every module latches its time-out");
+        if line.contains("safety time-out: drive disabled, brake engaged") {
+            latched += 1;
+        }
+    }
     let o = motus(&["kv01", port, "joints"]);
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8(o.stderr).unwrap();

@@ -16,7 +16,7 @@ pub enum Kv01Error {
     #[error(
         "module 0x{addr:02X} (joint {joint}) answers \"TO\": its 700 ms safety communication time-out tripped, \
          so it disabled the drive and engaged the brake. It stays latched: check the joint is safe, power-cycle \
-         the arm's communication modules, then enable the joint again"
+         the arm's communication modules (a simulated arm: restart `motus sim kv01`), then enable the joint again"
     )]
     SafetyTimeout {
         /// Module address.

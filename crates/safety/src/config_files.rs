@@ -26,11 +26,23 @@ use crate::approval::{Approval, ApprovalError};
 use crate::integrity::{secret_hash, DriveParameters, Integrity, IntegrityError, Snapshot};
 use crate::rules::{ConfigError, RuleSet};
 
+/// The way out when the administrator key or the approval does not exist yet.
+fn missing_hint(what: &str, source: &std::io::Error) -> &'static str {
+    match (what, source.kind()) {
+        ("key" | "approval", std::io::ErrorKind::NotFound) => {
+            " (an administrator writes the key file and approves the rules with `motus safety approve \
+             --rules R [--drives D] --key K --admin NAME --out A`; `motus demo --write-cell DIR` writes a cell \
+             with both)"
+        }
+        _ => "",
+    }
+}
+
 /// What a configuration file operation failed on.
 #[derive(Debug, Error)]
 pub enum FilesError {
     /// A file cannot be read.
-    #[error("cannot read the {what} {}: {source}", path.display())]
+    #[error("cannot read the {what} {}: {source}{}", path.display(), missing_hint(what, source))]
     Read {
         /// Which file (`key`, `rules`, `drive parameters`, `approval`).
         what: &'static str,

@@ -8,9 +8,10 @@ use motus_axis::{AxisCommand, AxisError, Direction, MotionProfile};
 use motus_cell::{GroupHandle, Pattern};
 use motus_station::scheduler::ClassState;
 use motus_station_web::{
-    AxisAction, AxisLimits, AxisParameters, AxisView, BackendError, Caller, ExecutedPathView, GroupAction,
-    GroupKind, GroupView, MachineBackend, PredictedReach, ProgramCheck, ProgramInfo, ProgramPreview,
-    ProgramStatus, RobotScene, RunState, SafetyView, Sample, SampleBatch, SceneView, SignalView, TaskView,
+    AxisAction, AxisLimits, AxisParameters, AxisView, BackendError, Caller, CameraFeed, ExecutedPathView,
+    GroupAction, GroupKind, GroupView, MachineBackend, PredictedReach, ProgramCheck, ProgramInfo,
+    ProgramPreview, ProgramStatus, RobotScene, RunState, SafetyView, Sample, SampleBatch, SceneView,
+    SignalView, TaskView,
 };
 
 use motus_lab::Role;
@@ -810,8 +811,16 @@ impl MachineBackend for StationMachine {
                     GroupHandle::Juggler(j) => j.program().map(|p| p.name().to_owned()),
                     _ => None,
                 },
+                camera: self.camera(&g.name).is_some(),
             })
             .collect()
+    }
+
+    fn camera(&self, group: &str) -> Option<CameraFeed> {
+        match self.shared.config.group(group)?.camera.as_ref()? {
+            motus_station::config::Camera::Simulated => Some(CameraFeed::Simulated),
+            motus_station::config::Camera::Http(url) => Some(CameraFeed::Http(url.clone())),
+        }
     }
 
     fn group_command(&self, caller: &Caller, group: &str, action: GroupAction) -> Result<(), BackendError> {

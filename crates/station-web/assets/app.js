@@ -531,12 +531,30 @@ async function loadUsers() {
 }
 
 async function loadCamera() {
-  let r; try { r = await api('GET', '/api/camera'); } catch (_) { return; }
+  let r, groups;
+  try { r = await api('GET', '/api/camera'); groups = await api('GET', '/api/groups'); } catch (_) { return; }
   const box = $('camera'); box.replaceChildren();
+  // The machines' cameras, relayed by the station (no route to the cameras needed; a stream
+  // ends with the session). One live picture at a time: a browser keeps six connections per
+  // station, and the page's own requests need theirs.
+  const cams = groups.filter(g => g.camera);
+  if (cams.length) {
+    const img = el('img', { alt: 'machine camera', 'data-testid': 'camera-view' });
+    const caption = el('figcaption', { class: 'small' });
+    const show = (g) => {
+      img.src = `/api/groups/${encodeURIComponent(g.id)}/camera.mjpg`;
+      caption.textContent = `Camera of ${g.id} (${g.kind}), live through the station`;
+      for (const b of picks.children) b.setAttribute('aria-pressed', String(b.dataset.group === g.id));
+    };
+    const picks = el('div', { class: 'camera-picks' }, ...cams.map(g =>
+      el('button', { text: g.id, 'data-group': g.id, 'data-testid': `camera-pick-${g.id}`, on: { click: () => show(g) } })));
+    box.append(picks, el('figure', { class: 'camera' }, img, caption));
+    show(cams[0]);
+  }
   if (r.url) {
     const isImg = /\.(jpe?g|png|mjpe?g|gif)(\?|$)|mjpg|snapshot/i.test(r.url);
-    box.append(isImg ? el('img', { src: r.url, alt: 'camera', 'data-testid': 'camera-view' }) : el('iframe', { src: r.url, title: 'camera', 'data-testid': 'camera-view' }));
-  } else box.append(el('p', { class: 'small', text: 'No external camera configured; the live view above shows the simulated machines.' }));
+    box.append(isImg ? el('img', { src: r.url, alt: 'camera', 'data-testid': 'camera-external' }) : el('iframe', { src: r.url, title: 'camera', 'data-testid': 'camera-external' }));
+  } else if (!cams.length) box.append(el('p', { class: 'small', text: 'No camera configured; the live view above shows the simulated machines.' }));
 }
 
 // ---------- WebSocket ----------

@@ -238,6 +238,18 @@ pub struct GroupView {
     /// The program the group's controller runs, when it has one.
     #[serde(default)]
     pub program: Option<String>,
+    /// The group has a camera (`GET /api/groups/{id}/camera.mjpg`).
+    #[serde(default)]
+    pub camera: bool,
+}
+
+/// Where a machine's pictures come from ([`MachineBackend::camera`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CameraFeed {
+    /// Drawn by the station from the group's axes as they are.
+    Simulated,
+    /// An HTTP camera (MJPEG stream or JPEG image) the station fetches for each viewer.
+    Http(String),
 }
 
 /// One rule's predicted reach, per axis.
@@ -629,6 +641,11 @@ pub trait MachineBackend: Send + Sync {
     fn group_command(&self, caller: &Caller, group: &str, action: GroupAction) -> Result<(), BackendError>;
     /// External camera URL (real machines), if configured.
     fn camera_url(&self) -> Option<String>;
+    /// The camera of `group`, if it has one (`[[group]] camera` of the cell file).
+    fn camera(&self, group: &str) -> Option<CameraFeed> {
+        let _ = group;
+        None
+    }
     /// The slot of `user` ended: remove their programs and traces, bring the machine to a
     /// safe, homed state.
     fn on_slot_end(&self, user: &str);

@@ -20,6 +20,7 @@ pub mod api_machine;
 pub mod assets;
 pub mod auth;
 pub mod backend;
+pub mod camera;
 pub mod clock;
 pub mod error;
 pub mod listener;
@@ -28,10 +29,10 @@ pub mod server;
 pub mod ws;
 
 pub use backend::{
-    AxisAction, AxisLimits, AxisParameters, AxisView, BackendError, Caller, ExecutedPathView, GroupAction,
-    GroupKind, GroupView, MachineBackend, PredictedReach, ProgramCheck, ProgramDiagnostic, ProgramInfo,
-    ProgramPreview, ProgramStatus, RobotScene, RunState, SafetyView, Sample, SampleBatch, SceneView,
-    SignalView, TaskView,
+    AxisAction, AxisLimits, AxisParameters, AxisView, BackendError, Caller, CameraFeed, ExecutedPathView,
+    GroupAction, GroupKind, GroupView, MachineBackend, PredictedReach, ProgramCheck, ProgramDiagnostic,
+    ProgramInfo, ProgramPreview, ProgramStatus, RobotScene, RunState, SafetyView, Sample, SampleBatch,
+    SceneView, SignalView, TaskView,
 };
 pub use clock::{Clock, OffsetClock, SystemClock};
 pub use error::ApiError;

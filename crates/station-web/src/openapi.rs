@@ -291,6 +291,23 @@ fn paths() -> Value {
     );
     add("/api/scene", "get", op("2-D scene of the machines", None, any.clone(), false));
     add("/api/camera", "get", op("External camera URL, if configured", None, any.clone(), false));
+    let mut camera = with_path_param(
+        op(
+            "The group's camera as an MJPEG stream (simulated, or an HTTP camera relayed by the station); \
+             404 without a camera, 503 beyond the stream bounds",
+            None,
+            any.clone(),
+            false,
+        ),
+        "id",
+        "string",
+    );
+    set(
+        &mut camera,
+        &["responses", "200", "content"],
+        json!({ "multipart/x-mixed-replace": { "schema": { "type": "string", "format": "binary" } } }),
+    );
+    add("/api/groups/{id}/camera.mjpg", "get", camera);
     add(
         "/api/reservations",
         "get",

@@ -160,6 +160,8 @@ pub struct Inner {
     pub shutdown: watch::Receiver<bool>,
     /// Set when reservations or alarms changed: the next frame re-reads them.
     pub lab_changed: AtomicBool,
+    /// The camera streams open now.
+    pub cameras: crate::camera::Streams,
 }
 
 impl Inner {
@@ -220,6 +222,7 @@ pub fn router(state: AppState) -> Router {
         .route("/api/trace.csv", get(api_machine::trace_csv))
         .route("/api/scene", get(api_machine::scene))
         .route("/api/camera", get(api_machine::camera))
+        .route("/api/groups/:id/camera.mjpg", get(crate::camera::stream))
         .route("/api/reservations", get(api_lab::reservations).post(api_lab::book))
         .route("/api/reservations/:id", delete(api_lab::cancel))
         .route("/api/audit", get(api_lab::audit))
@@ -272,6 +275,7 @@ pub async fn serve_on(
         frames,
         shutdown: stop_rx,
         lab_changed: AtomicBool::new(true),
+        cameras: crate::camera::Streams::default(),
     });
     let broadcaster = tokio::spawn(ws::broadcast(Arc::clone(&state)));
     let sweeper = tokio::spawn(api_lab::cleanup_loop(Arc::clone(&state)));

@@ -175,7 +175,7 @@ pub async fn handler(State(state): State<AppState>, headers: HeaderMap, ws: WebS
 }
 
 /// True while the session exists and has not expired (read without extending it).
-fn session_alive(state: &Inner, token_hash: &str, now: UnixMs) -> bool {
+pub(crate) fn session_alive(state: &Inner, token_hash: &str, now: UnixMs) -> bool {
     let policy = state.lab.sessions().policy();
     match state.lab.store().get_session(token_hash) {
         Ok(Some(rec)) => {

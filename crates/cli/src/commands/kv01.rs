@@ -35,6 +35,9 @@ pub fn run(a: Kv01Args) -> Result<()> {
     result
 }
 
+/// Runs the commands of standard input, one per line. A failed command is reported and the
+/// session goes on (the arm stays alive); the same error again is named in one short line
+/// (a latched module refuses every later command); the exit status says how many failed.
 fn session(arm: &Kv01Arm, json: bool) -> Result<()> {
     #[derive(clap::Parser)]
     #[command(no_binary_name = true)]
@@ -44,21 +47,32 @@ fn session(arm: &Kv01Arm, json: bool) -> Result<()> {
     }
     use clap::Parser;
     eprintln!("KV-01 session: one command per line (joints, move 2=30, ...); end with EOF");
+    let (mut commands, mut failed) = (0usize, 0usize);
+    let mut reported: Vec<String> = Vec::new();
     for line in std::io::stdin().lock().lines() {
         let line = line?;
         let words: Vec<&str> = line.split_whitespace().collect();
         if words.is_empty() || words.first().is_some_and(|w| w.starts_with('#')) {
             continue;
         }
-        match Line::try_parse_from(words) {
-            Ok(Line { action: Kv01Action::Session }) => eprintln!("error: already in a session"),
-            Ok(l) => {
-                if let Err(e) = act(arm, &l.action, json) {
-                    println!("error: {}", crate::error_text::error_text(&e));
-                }
+        commands += 1;
+        let error = match Line::try_parse_from(words) {
+            Ok(Line { action: Kv01Action::Session }) => Some("already in a session".to_string()),
+            Ok(l) => act(arm, &l.action, json).err().map(|e| crate::error_text::error_text(&e)),
+            Err(e) => Some(e.to_string().lines().next().unwrap_or("invalid command").to_string()),
+        };
+        if let Some(text) = error {
+            failed += 1;
+            if reported.contains(&text) {
+                println!("error: `{}`: the same error as before", line.trim());
+            } else {
+                println!("error: `{}`: {text}", line.trim());
+                reported.push(text);
             }
-            Err(e) => println!("error: {}", e.to_string().lines().next().unwrap_or("invalid command")),
         }
+    }
+    if failed > 0 {
+        bail!("{failed} of {commands} session commands failed (see the errors above)");
     }
     Ok(())
 }
@@ -89,7 +103,7 @@ fn print_joints(arm: &Kv01Arm, json: bool) -> Result<()> {
                 if s.status.brake_released { "brake-released " } else { "" },
                 if s.status.limit_switch { "LIMIT-SWITCH " } else { "" },
                 if s.status.lsstop { "LSSTOP " } else { "" },
-                s.fault.as_deref().map(|f| format!("\n  fault: {f}")).unwrap_or_default()
+                s.fault.as_deref().map(short_fault).unwrap_or_default()
             );
         }
     }
@@ -97,6 +111,16 @@ fn print_joints(arm: &Kv01Arm, json: bool) -> Result<()> {
         bail!("{f}");
     }
     Ok(())
+}
+
+/// A joint's fault for the joints table: a latched safety time-out in a few words (the full
+/// explanation, with the way out, follows once below the table).
+fn short_fault(fault: &str) -> String {
+    if fault.contains("700 ms") {
+        "\n  fault: latched its 700 ms safety time-out (see below)".to_string()
+    } else {
+        format!("\n  fault: {fault}")
+    }
 }
 
 fn act(arm: &Kv01Arm, action: &Kv01Action, json: bool) -> Result<()> {

@@ -7,7 +7,7 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime};
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use motus_lab::{Lab, LabConfig, Role, SqliteStore, Store, UnixMs};
 use motus_station_machine::alarms::LabAlarmSink;
 use motus_station_machine::{StationMachine, StationOptions};
@@ -184,6 +184,9 @@ pub fn serve(a: ServeArgs) -> Result<()> {
 
 /// `motus demo`.
 pub fn demo(a: DemoArgs) -> Result<()> {
+    if let Some(dir) = &a.write_cell {
+        return write_cell(dir, &a.listen);
+    }
     set_realtime(a.realtime);
     let dir = tempfile::Builder::new()
         .prefix("motus-demo-")
@@ -194,4 +197,26 @@ pub fn demo(a: DemoArgs) -> Result<()> {
     let password: String =
         rand::thread_rng().sample_iter(&rand::distributions::Alphanumeric).take(20).map(char::from).collect();
     run_station(&cell, Some(listen), &dir.path().join("demo.lab.sqlite"), Some(("admin", &password)))
+}
+
+/// `motus demo --write-cell DIR`: the demo cell in `dir` (new or empty), and what to do next.
+fn write_cell(dir: &Path, listen: &str) -> Result<()> {
+    let listen: SocketAddr = listen.parse().with_context(|| format!("--listen {listen}"))?;
+    if dir.exists()
+        && std::fs::read_dir(dir).with_context(|| format!("cannot read {}", dir.display()))?.next().is_some()
+    {
+        bail!("{} is not empty: give a new or empty directory for the demo cell", dir.display());
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let cell = motus_station_machine::demo::write_demo_cell(dir, &listen.to_string())
+        .with_context(|| format!("cannot write the demo cell into {}", dir.display()))?;
+    println!("{}", cell.display());
+    eprintln!(
+        "the demo cell is in {}; add an administrator, then run the station:\n  \
+         echo 'a long passphrase' | motus user --config {c} add admin --role admin\n  \
+         motus serve --config {c}",
+        dir.display(),
+        c = cell.display()
+    );
+    Ok(())
 }

@@ -31,7 +31,18 @@ fn read_password() -> Result<String> {
 pub fn run(a: UserArgs) -> Result<()> {
     let path = match (&a.db, &a.config) {
         (Some(db), _) => db.clone(),
-        (None, Some(cfg)) => motus_lab::store::default_db_path(cfg),
+        (None, Some(cfg)) => {
+            // The station's database sits beside its cell file: a mistyped path must not
+            // create a database no station reads.
+            if !cfg.is_file() {
+                bail!(
+                    "cell file {} not found: give the cell file `motus serve --config` reads (its users are kept in {}), or --db <file>",
+                    cfg.display(),
+                    motus_lab::store::default_db_path(cfg).display()
+                );
+            }
+            motus_lab::store::default_db_path(cfg)
+        }
         (None, None) => bail!("give --db <file> or --config <cell.toml>"),
     };
     let store: Arc<dyn Store> =

@@ -16,6 +16,11 @@ pub struct SimProcess(Child);
 impl SimProcess {
     /// Runs `motus <args>` and waits for a stderr line containing `ready`.
     pub fn start(args: &[&str], ready: &str) -> SimProcess {
+        Self::start_logged(args, ready).0
+    }
+
+    /// [`SimProcess::start`], and the simulator's later stderr lines as they come.
+    pub fn start_logged(args: &[&str], ready: &str) -> (SimProcess, std::sync::mpsc::Receiver<String>) {
         let mut child =
             Command::new(MOTUS).args(args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
         let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
@@ -25,8 +30,13 @@ impl SimProcess {
                 break;
             }
         }
-        std::thread::spawn(move || for _ in lines {});
-        SimProcess(child)
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in lines.map_while(Result::ok) {
+                let _ = tx.send(line);
+            }
+        });
+        (SimProcess(child), rx)
     }
 
     /// Kills the simulator (SIGKILL: no clean-up, like a crash or power loss).

@@ -67,7 +67,22 @@ impl Env {
         Self::build(|_| {}, |_| {}, |_| {}, false)
     }
 
+    /// [`Env::new`] on the test cell as `edit` changes its text.
+    pub fn with_cell(edit: impl FnOnce(String) -> String) -> Env {
+        Self::build_on(edit, |_| {}, |_| {}, |_| {}, true)
+    }
+
     fn build(
+        tweak: impl FnOnce(&mut LabConfig),
+        web: impl FnOnce(&mut WebConfig),
+        station: impl FnOnce(&mut StationOptions),
+        home: bool,
+    ) -> Env {
+        Self::build_on(|t| t, tweak, web, station, home)
+    }
+
+    fn build_on(
+        edit: impl FnOnce(String) -> String,
         tweak: impl FnOnce(&mut LabConfig),
         web: impl FnOnce(&mut WebConfig),
         station: impl FnOnce(&mut StationOptions),
@@ -75,6 +90,7 @@ impl Env {
     ) -> Env {
         let dir = tempfile::tempdir().unwrap();
         let cell_file = write_api_test_cell(dir.path());
+        std::fs::write(&cell_file, edit(API_TEST_CELL.to_string())).unwrap();
         let cell = motus_station::config::load(&cell_file).unwrap_or_else(|e| panic!("{e}"));
         let mut cfg = motus_station_machine::lab_config(&cell, false);
         // Cheap hashes: the tests log in often (the cost is not under test here).

@@ -16,7 +16,7 @@ use std::path::Path;
 
 pub use error::{ConfigError, ConfigErrors};
 pub use model::{
-    AxisConfig, Cell, Device, DeviceKind, Group, GroupKind, Limits, Link, LinkKind, Program, Station,
+    AxisConfig, Camera, Cell, Device, DeviceKind, Group, GroupKind, Limits, Link, LinkKind, Program, Station,
     StudentLimits, Supervisor, TaskClassConfig, TaskConfig, TaskKind, ToolConfig, Unit, DEFAULT_LISTEN,
     DEFAULT_OVERRUN_LIMIT, DEFAULT_PROGRAM_CHECK_TIME,
 };

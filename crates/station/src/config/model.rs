@@ -380,6 +380,19 @@ pub struct Group {
     pub kind: GroupKind,
     /// Its axes, in the group's order (e.g. wheel 1..3, pan then tilt).
     pub axes: Vec<String>,
+    /// The machine's camera, relayed by the station to logged-in users (`None`: no camera).
+    pub camera: Option<Camera>,
+}
+
+/// `camera = ...` of a `[[group]]`: where the pictures of the machine come from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Camera {
+    /// `"simulated"`: the station draws the machine's axes as they are, as an MJPEG stream.
+    Simulated,
+    /// `"http://host[:port]/path"`: an HTTP camera (an MJPEG stream or a still JPEG image)
+    /// on the lab's network, fetched by the station for each viewer (browsers need no route
+    /// to it).
+    Http(String),
 }
 
 /// `[supervisor]`.

@@ -95,6 +95,8 @@ pub(crate) struct RawGroup {
     pub name: Spanned<String>,
     pub kind: GroupKind,
     pub axes: Spanned<Vec<Spanned<String>>>,
+    #[serde(default)]
+    pub camera: Option<Spanned<String>>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -10,8 +10,8 @@ use toml::Spanned;
 
 use super::error::{ConfigError, Locator};
 use super::model::{
-    AxisConfig, Cell, Device, DeviceKind, Group, Limits, Link, LinkKind, Program, Station, StudentLimits,
-    Supervisor, TaskConfig, TaskKind, ToolConfig, DEFAULT_LISTEN, DEFAULT_OVERRUN_LIMIT,
+    AxisConfig, Camera, Cell, Device, DeviceKind, Group, Limits, Link, LinkKind, Program, Station,
+    StudentLimits, Supervisor, TaskConfig, TaskKind, ToolConfig, DEFAULT_LISTEN, DEFAULT_OVERRUN_LIMIT,
     DEFAULT_PROGRAM_CHECK_TIME,
 };
 use super::raw::{RawAxis, RawCell, RawDevice, RawStudent, RawTask};
@@ -555,13 +555,39 @@ impl<'a> Validator<'a> {
                     );
                 }
             }
+            let camera = g.camera.as_ref().and_then(|c| self.camera(c, i, &name));
             out.push(Group {
                 name,
                 kind: g.kind,
                 axes: g.axes.get_ref().iter().map(|a| a.get_ref().clone()).collect(),
+                camera,
             });
         }
         out
+    }
+
+    /// A group's camera: `"simulated"`, or a plain `http://` URL with a host (the station
+    /// fetches it; TLS to cameras is not spoken).
+    fn camera(&mut self, raw: &Spanned<String>, i: usize, group: &str) -> Option<Camera> {
+        let text = raw.get_ref().trim();
+        if text == "simulated" {
+            return Some(Camera::Simulated);
+        }
+        let host = text.strip_prefix("http://").map(|rest| rest.split('/').next().unwrap_or(""));
+        match host {
+            Some(h) if !h.is_empty() && !h.contains(['@', ' ']) => Some(Camera::Http(text.to_string())),
+            _ => {
+                self.err(
+                    raw,
+                    format!("group[{i}].camera"),
+                    format!(
+                        "group \"{group}\": camera {text:?} is neither \"simulated\" nor an http://host[:port]/path URL \
+                         (an MJPEG stream or a JPEG image; https and credentials in the URL are not supported)"
+                    ),
+                );
+                None
+            }
+        }
     }
 
     /// The tool table: numbers 1-99999, each once; diameters finite and not negative; lengths
