@@ -35,6 +35,15 @@ if ! command -v rs274 >/dev/null || ! /usr/bin/python3 -c 'import gcode' 2>/dev/
     exit 1
   fi
 fi
+if ! command -v curl >/dev/null; then
+  if [ "$(id -u)" = 0 ]; then
+    echo "installing curl (the README's station block asks the API with it)"
+    apt_install curl ca-certificates
+  else
+    echo "curl is needed by the README test: sudo apt-get install curl" >&2
+    exit 1
+  fi
+fi
 if ! command -v chromium >/dev/null; then
   if [ "$(id -u)" = 0 ]; then
     echo "installing chromium (browser tests of the web HMI)"
