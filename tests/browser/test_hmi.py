@@ -367,7 +367,8 @@ def step_camera(t):
     page = t.page
     cams = [g for g in t.groups if g.get("camera")]
     assert cams, f"no group with a camera in {[g['id'] for g in t.groups]}"
-    # The first machine's camera is on the page: a picture drawn by the station (320 x 240).
+    # A machine's camera on the page, when picked: a picture drawn by the station (320 x 240).
+    t.tid(f"camera-pick-{cams[0]['id']}").click()
     page.wait_for_function(
         "() => { const i = document.querySelector('[data-testid=camera-view]'); return i && i.naturalWidth === 320; }",
         timeout=30000)
@@ -375,6 +376,10 @@ def step_camera(t):
     page.wait_for_function(
         f"() => document.querySelector('[data-testid=camera-view]').src.includes('/api/groups/{cams[-1]['id']}/')",
         timeout=10000)
+    shot(page, "02b-camera")
+    # Off again: the stream ends (the later steps run without it).
+    t.tid("camera-off").click()
+    page.wait_for_function("() => !document.querySelector('[data-testid=camera-view]').getAttribute('src')", timeout=10000)
     # Frames per second as a browser receives them: a figure for scripts/realtime.sh (the
     # station draws 15 a second; a loaded host may deliver fewer), and a liveness check here.
     r = page.evaluate(CAMERA_COUNT_JS, cams[0]["id"])
@@ -386,7 +391,6 @@ def step_camera(t):
     os.makedirs(out, exist_ok=True)
     with open(os.path.join(out, "demo_browser.log"), "a", encoding="utf-8") as f:
         f.write(f"REALTIME suite.demo_browser.camera_fps {fps:.1f} fps\n")
-    shot(page, "02b-camera")
 
 
 def step_add_student(t):

@@ -453,7 +453,7 @@ fn group(
             robot: g.axes.first().and_then(|a| link_of(a)).and_then(|l| robots.get(&l).cloned()),
         }),
         GroupKind::Juggler => rc.juggler.clone().map_or(GroupHandle::Axes, GroupHandle::Juggler),
-        GroupKind::Gantry => GroupHandle::Axes,
+        GroupKind::Gantry | GroupKind::Axes => GroupHandle::Axes,
     };
     CellGroup { name: g.name.clone(), kind: g.kind, axes: g.axes.clone(), handle }
 }

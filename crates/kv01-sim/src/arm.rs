@@ -95,6 +95,13 @@ impl Arm {
         }
     }
 
+    /// The simulator did not run for `gap` (see `motus_serial::Responder::simulator_stalled`):
+    /// every module's communication watch starts that much later, so only the host's own
+    /// silence trips the 700 ms time-out.
+    pub fn excuse_silence(&mut self, gap: Duration) {
+        self.modules.iter_mut().for_each(|m| m.excuse_silence(gap));
+    }
+
     /// Answers `request` at `now` (advancing first), with the time the reply is due.
     /// `None`: the module is deaf (fault injection).
     pub fn respond(&mut self, request: &Request, now: Duration) -> Option<TimedReply> {

@@ -271,3 +271,20 @@ fn power_on_on_a_switch_starts_in_lsstop() {
     assert!(s.lsstop && s.limit_switch);
     assert_eq!(r.d0(3, "V10"), "LSSTOP");
 }
+
+#[test]
+fn the_simulators_own_stall_is_not_the_hosts_silence() {
+    // The serve loop did not run for 600 ms (a loaded host): the host's messages waited in
+    // the line. The watch starts again after the stall, so 400 ms more of real silence is
+    // fine, and 700 ms of it still trips.
+    let mut r = Rig::new();
+    r.d3(2);
+    r.arm.excuse_silence(Duration::from_millis(600));
+    r.run_silent(1000);
+    assert!(!r.state(2).timed_out, "1000 ms, of which 600 ms the simulator's own stall");
+    r.run_silent(300);
+    assert!(r.state(2).timed_out, "700 ms of silence after the stall");
+    // A latched module is not un-latched by a later stall.
+    r.arm.excuse_silence(Duration::from_secs(10));
+    assert!(r.state(2).timed_out);
+}

@@ -102,7 +102,20 @@ pub trait Responder {
     /// Brings the devices up to `now`; called while the line is idle and after every read.
     /// The times handed to a responder never go back.
     fn tick(&mut self, now: Duration) -> io::Result<()>;
+
+    /// The simulator's own thread did not run for `gap` (it was not scheduled: a loaded
+    /// host), so bytes the host sent meanwhile waited in the line instead of reaching the
+    /// devices as they came. A device that watches its line for silence (a communication
+    /// time-out) must not count that gap against the host. Called before those bytes are
+    /// handed over; nothing by default.
+    fn simulator_stalled(&mut self, gap: Duration) {
+        let _ = gap;
+    }
 }
+
+/// A serve loop that wakes this much later than its read time-out was not running (see
+/// [`Responder::simulator_stalled`]).
+pub const STALL: Duration = Duration::from_millis(50);
 
 /// How the serve step waits and where its answers go: the threaded loop sleeps on its
 /// clock and writes to its (paced, faulty) link; an inline [`crate::SimLink`] moves a
@@ -406,15 +419,24 @@ impl<S: Scanner> SimServer<S> {
     {
         let clock = Arc::clone(&self.core.clock);
         let mut buf = [0u8; 256];
+        let poll = self.core.options.poll;
+        let mut looked = clock.now();
         while !stop.load(Ordering::Relaxed) {
-            let n = self.link.read(&mut buf, self.core.options.poll)?;
+            let n = self.link.read(&mut buf, poll)?;
             let now = clock.now();
+            // Woken far later than the read's time-out: this thread was not running.
+            let late = now.saturating_duration_since(looked).saturating_sub(poll);
+            if late >= STALL {
+                tracing::debug!(late_ms = late.as_millis(), "simulator thread stalled");
+                responder.simulator_stalled(late);
+            }
             let mut port = ThreadedPort { link: &mut *self.link, clock: &*clock };
             if self.core.idle_flush_at().is_some_and(|at| now >= at) {
                 self.core.flush(responder, &mut port)?;
             }
             self.core.receive(buf.get(..n).unwrap_or_default(), now, now, responder, &mut port)?;
             self.core.tick(clock.now(), responder)?;
+            looked = clock.now();
         }
         self.core.tick(clock.now(), responder)
     }

@@ -798,6 +798,7 @@ impl MachineBackend for StationMachine {
                     GroupHandle::PanTilt(_) => GroupKind::PanTilt,
                     GroupHandle::Arm(_) => GroupKind::Arm,
                     GroupHandle::Juggler(_) => GroupKind::Juggler,
+                    GroupHandle::Axes if g.kind == motus_station::config::GroupKind::Axes => GroupKind::Axes,
                     GroupHandle::Axes => GroupKind::Gantry,
                 },
                 axes: g.axes.clone(),
@@ -903,6 +904,34 @@ impl MachineBackend for StationMachine {
                 cpu_percent: c.cpu_percent(),
             })
             .collect()
+    }
+
+    fn on_machine_slot_end(&self, group: &str, user: &str, last: bool) {
+        tracing::info!(user, group, last, "machine slot ended: stopping and homing its axes");
+        let Some(g) = self.shared.config.group(group) else { return };
+        // The program runner drives the gantry: its program goes with the gantry's slot.
+        if g.kind == motus_station::config::GroupKind::Gantry {
+            self.programs.service.stop();
+        }
+        if last {
+            self.programs.remove_owned_by(user);
+        }
+        let members: Vec<&crate::AxisEntry> =
+            self.shared.axes.iter().filter(|a| a.view.group.as_deref() == Some(group)).collect();
+        {
+            let mut jogs = lock(&self.shared.jogs);
+            for a in &members {
+                jogs.end(&a.view.id);
+            }
+        }
+        for a in &members {
+            let _ = lock(&a.axis).execute(&AxisCommand::Stop);
+        }
+        if g.kind != motus_station::config::GroupKind::Juggler {
+            for a in &members {
+                let _ = lock(&a.axis).execute(&AxisCommand::Home);
+            }
+        }
     }
 
     fn on_slot_end(&self, user: &str) {

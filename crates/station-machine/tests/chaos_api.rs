@@ -74,7 +74,8 @@ fn a_simulator_killed_in_motion_faults_only_its_axes_and_comes_back_through_the_
         if !a["cleared_at"].is_null() {
             break a;
         }
-        assert!(t0.elapsed() < Duration::from_secs(20), "still disconnected: {a}");
+        // A liveness bound: the reconnection backs off to 2 s between tries, longer on a loaded host.
+        assert!(t0.elapsed() < Duration::from_secs(60), "still disconnected: {a}");
         std::thread::sleep(Duration::from_millis(100));
     };
     eprintln!("reconnected {:?} after the restart", t0.elapsed());

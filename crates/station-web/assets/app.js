@@ -10,7 +10,7 @@ function resetState() {
   Object.assign(S, {
     session: null, ws: null, signals: [], picked: new Set(['x.position', 'y.position']),
     plot: [], axes: [], axisIds: '', groups: [], program: null, frames: 0, lastRateAt: performance.now(),
-    slot: null, reservations: [], lastFrame: null, jogTimers: {}, alarmKey: null,
+    slot: null, slots: [], reservations: [], lastFrame: null, jogTimers: {}, alarmKey: null,
     preview: null, exec: { run: 0, next: 0, points: [], busy: false, at: 0 }, overrideBusy: false,
   });
 }
@@ -114,18 +114,39 @@ async function loadSession() {
   $('station-name').textContent = S.session.station;
   const admin = S.session.role === 'admin';
   document.querySelectorAll('.admin-only').forEach((e) => { e.hidden = !admin; });
-  S.slot = S.session.slot;
+  S.slot = S.session.slot; S.slots = S.session.slots || [];
+  buildMachinePick();
   applyMode();
   await Promise.all([loadReservations(), loadGroups(), loadCamera(), loadAlarms()]);
   if (admin) { loadAudit(); loadUsers(); }
   connect();
 }
 
+// A reservation's resource for people: a machine (group id), or the whole cell.
+function resourceName(station) {
+  return S.session && station === S.session.station ? 'whole cell' : station;
+}
+
+// The slots running now that are mine (the whole cell's or machines').
+function mySlots() {
+  return S.session ? S.slots.filter((r) => r.user === S.session.user) : [];
+}
+
 function canCommand() {
   if (!S.session) return false;
   if (S.session.role === 'admin') return true;
   if (S.session.role !== 'student') return false;
-  return !!(S.slot && S.slot.user === S.session.user);
+  return mySlots().length > 0;
+}
+
+// The booking choice: the whole cell or one machine.
+function buildMachinePick() {
+  const pick = $('book-machine');
+  const was = pick.value;
+  pick.replaceChildren(el('option', { value: '', text: 'the whole cell' }),
+    ...(S.session.machines || []).map((m) => el('option', { value: m, text: `machine ${m}` })));
+  if ([...pick.options].some((o) => o.value === was)) pick.value = was;
+  pick.onchange = () => loadReservations();
 }
 
 function applyMode() {
@@ -135,14 +156,19 @@ function applyMode() {
   $('estop-btn').disabled = !S.session || S.session.role === 'viewer';
   const note = $('mode-note');
   if (!S.session) { note.textContent = ''; return; }
-  if (can) { note.textContent = S.session.role === 'admin' ? 'Admin: full control' : 'Your slot: you have control'; note.className = ''; }
-  else {
+  if (can) {
+    note.textContent = S.session.role === 'admin' ? 'Admin: full control'
+      : `Your slot: you have control of ${mySlots().map((r) => resourceName(r.station)).join(', ')}`;
+    note.className = '';
+  } else {
     const why = S.session.role === 'viewer' ? 'viewer role'
-      : S.slot ? `slot held by ${S.slot.user}` : 'no slot of yours now';
+      : S.slot ? `slot held by ${S.slot.user}` : 'no slot of yours now: book a machine below';
     note.textContent = `Read-only (${why})`; note.className = 'readonly-note';
   }
   const st = $('slot-status');
-  st.textContent = S.slot ? `Slot running: ${S.slot.user} until ${hhmm(S.slot.end)}` : 'No slot running now';
+  st.textContent = S.slots.length
+    ? `Slots running: ${S.slots.map((r) => `${resourceName(r.station)} by ${r.user} until ${hhmm(r.end)}`).join('; ')}`
+    : 'No slot running now';
 }
 
 // ---------- reservations ----------
@@ -152,28 +178,44 @@ async function loadReservations() {
   for (const r of S.reservations) {
     const mine = S.session && (r.user === S.session.user || S.session.role === 'admin');
     rows.append(el('tr', { 'data-testid': `reservation-${r.id}` },
-      el('td', { text: r.id }), el('td', { text: r.user }), el('td', { text: new Date(r.start).toLocaleString() }),
+      el('td', { text: r.id }), el('td', { text: resourceName(r.station) }), el('td', { text: r.user }), el('td', { text: new Date(r.start).toLocaleString() }),
       el('td', { text: hhmm(r.end) }),
       el('td', {}, mine && Date.now() < r.end ? el('button', { text: 'Cancel', 'data-testid': `cancel-${r.id}`,
         on: { click: () => act('Cancel', () => api('DELETE', `/api/reservations/${r.id}`)).then(refreshSlot) } }) : '')));
   }
+  // The machine's line: join it when the machine is busy now; it is yours as soon as it frees.
+  let queues = {}; try { queues = await api('GET', '/api/queues'); } catch (_) { /* shown empty */ }
+  const picked = $('book-machine').value;
+  const line = (picked && queues[picked]) || [];
+  const place = line.findIndex((w) => S.session && w.user === S.session.user);
+  const busy = picked && S.slots.some((r) => r.station === picked || r.station === S.session.station);
+  const join = $('queue-join');
+  join.hidden = !picked || !busy || place >= 0 || !S.session || S.session.role === 'viewer';
+  join.textContent = `Join the line for ${picked}`;
+  join.onclick = () => act('Join the line', () => api('POST', `/api/machines/${encodeURIComponent(picked)}/queue`)).then(refreshSlot);
+  $('queue-status').textContent = place >= 0 ? `You are number ${place + 1} in the line for ${picked}: it is yours as soon as it is free.`
+    : line.length ? `${line.length} waiting for ${picked}.` : '';
   const list = $('slot-list'); list.replaceChildren();
   const now = Date.now(); const half = 30 * 60 * 1000;
   const slots = [[now, Math.ceil((now + half) / half) * half]];
   for (let i = 0; i < 8; i++) { const s = slots[slots.length - 1][1]; slots.push([s, s + half]); }
+  // A machine's slot is taken by its own bookings and the whole cell's; the whole cell's by any.
+  const machine = $('book-machine').value;
+  const clashes = (r) => !machine || r.station === machine || r.station === S.session.station;
   slots.forEach(([a, b], i) => {
-    const taken = S.reservations.find((r) => r.start < b && a < r.end);
+    const taken = S.reservations.find((r) => r.start < b && a < r.end && clashes(r));
     const label = i === 0 ? `Now - ${hhmm(b)}` : `${hhmm(a)} - ${hhmm(b)}`;
     list.append(el('li', {}, el('button', {
       text: taken ? `${label} (${taken.user})` : label, class: taken ? 'taken' : '', 'data-testid': `book-slot-${i}`,
       disabled: !!taken || !S.session || S.session.role === 'viewer',
-      on: { click: () => act('Book', () => api('POST', '/api/reservations', { start: a, end: b })).then(refreshSlot) },
+      on: { click: () => act('Book', () => api('POST', '/api/reservations',
+        machine ? { start: a, end: b, machine } : { start: a, end: b })).then(refreshSlot) },
     })));
   });
 }
 
 async function refreshSlot() {
-  try { S.session = await api('GET', '/api/session'); S.slot = S.session.slot; } catch (_) { return; }
+  try { S.session = await api('GET', '/api/session'); S.slot = S.session.slot; S.slots = S.session.slots || []; } catch (_) { return; }
   applyMode(); loadReservations();
 }
 
@@ -535,21 +577,24 @@ async function loadCamera() {
   try { r = await api('GET', '/api/camera'); groups = await api('GET', '/api/groups'); } catch (_) { return; }
   const box = $('camera'); box.replaceChildren();
   // The machines' cameras, relayed by the station (no route to the cameras needed; a stream
-  // ends with the session). One live picture at a time: a browser keeps six connections per
-  // station, and the page's own requests need theirs.
+  // ends with the session). One live picture at a time, and only when asked for: a browser
+  // keeps six connections per station, and every picture costs the station and the browser.
   const cams = groups.filter(g => g.camera);
   if (cams.length) {
-    const img = el('img', { alt: 'machine camera', 'data-testid': 'camera-view' });
-    const caption = el('figcaption', { class: 'small' });
+    const img = el('img', { alt: 'machine camera', 'data-testid': 'camera-view', hidden: true });
+    const caption = el('figcaption', { class: 'small', text: 'Pick a machine to watch it live.' });
+    const mark = (id) => { for (const b of picks.children) b.setAttribute('aria-pressed', String(b.dataset.group === id)); };
     const show = (g) => {
+      img.hidden = false;
       img.src = `/api/groups/${encodeURIComponent(g.id)}/camera.mjpg`;
       caption.textContent = `Camera of ${g.id} (${g.kind}), live through the station`;
-      for (const b of picks.children) b.setAttribute('aria-pressed', String(b.dataset.group === g.id));
+      mark(g.id);
     };
+    const off = () => { img.removeAttribute('src'); img.hidden = true; caption.textContent = 'Camera off.'; mark(null); };
     const picks = el('div', { class: 'camera-picks' }, ...cams.map(g =>
-      el('button', { text: g.id, 'data-group': g.id, 'data-testid': `camera-pick-${g.id}`, on: { click: () => show(g) } })));
+      el('button', { text: g.id, 'data-group': g.id, 'data-testid': `camera-pick-${g.id}`, on: { click: () => show(g) } })),
+      el('button', { text: 'Camera off', 'data-testid': 'camera-off', on: { click: off } }));
     box.append(picks, el('figure', { class: 'camera' }, img, caption));
-    show(cams[0]);
   }
   if (r.url) {
     const isImg = /\.(jpe?g|png|mjpe?g|gif)(\?|$)|mjpg|snapshot/i.test(r.url);
@@ -570,9 +615,10 @@ function connect() {
     if (f.type !== 'state') return;
     S.lastFrame = f; S.frames++;
     renderAxes(f.axes); renderSafety(f.safety); renderProgram(f.program); renderAlarms(f.alarms);
-    const slotUser = f.slot ? f.slot.user : null; const prev = S.slot ? S.slot.user : null;
-    S.slot = f.slot || null;
-    if (slotUser !== prev) { applyMode(); loadReservations(); }
+    const key = (l) => (l || []).map((r) => `${r.id}:${r.user}`).join(',');
+    const changed = key(f.slots) !== key(S.slots);
+    S.slot = f.slot || null; S.slots = f.slots || [];
+    if (changed) { applyMode(); loadReservations(); }
     for (const s of f.samples) S.plot.push(s);
     if (S.plot.length) { const t0 = S.plot[S.plot.length - 1].t - PLOT_SECONDS; let i = 0; while (i < S.plot.length && S.plot[i].t < t0) i++; if (i) S.plot.splice(0, i); }
     drawPlot(); drawScene(f.scene); if (f.scene.robot) drawRobot(f.scene.robot);

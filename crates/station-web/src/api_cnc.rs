@@ -10,7 +10,7 @@
 
 use axum::extract::{Path, Query, State};
 use axum::Json;
-use motus_lab::{Action, AuditOutcome, Command};
+use motus_lab::{AuditOutcome, Command};
 use serde::Deserialize;
 use serde_json::json;
 
@@ -38,7 +38,7 @@ where
     F: FnOnce(crate::backend::Caller) -> Result<(), BackendError> + Send + 'static,
 {
     let target = runner_target(state, what);
-    let lab_action = Action::Command { station: state.config.station.clone(), command: Command::Stop };
+    let lab_action = state.command_action(auth, Command::Stop);
     if let Err(e) = state.check(auth, &lab_action) {
         audit_program(state, auth, action, target, refusal(&e));
         return Err(e);

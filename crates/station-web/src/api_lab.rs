@@ -84,11 +84,15 @@ pub async fn logout(State(state): State<AppState>, Csrf(auth): Csrf) -> Result<R
     Ok(with_cookie(Json(json!({ "ok": true })).into_response(), &clear))
 }
 
-/// `GET /api/session`: who I am, my CSRF token, the slot in force and whether I may command.
+/// `GET /api/session`: who I am, my CSRF token, the whole-cell slot in force, the slots
+/// running on the machines, mine among them, the machines (bookable one by one) and whether I
+/// may command.
 pub async fn session(State(state): State<AppState>, auth: Auth) -> ApiResult {
     let now = state.now();
     let slot = state.lab.reservations().active_at(&state.config.station, now)?;
     let s = &auth.session;
+    let mine: Vec<String> =
+        crate::machines::held_now(&state, &s.user, now).into_iter().map(|r| r.station).collect();
     Ok(Json(json!({
         "user": s.user,
         "role": s.role,
@@ -96,7 +100,10 @@ pub async fn session(State(state): State<AppState>, auth: Auth) -> ApiResult {
         "idle_expires": s.idle_expires,
         "absolute_expires": s.absolute_expires,
         "station": state.config.station,
+        "machines": crate::machines::machines(&state),
         "slot": slot,
+        "slots": crate::machines::running_slots(&state, now),
+        "my_slots": mine,
         "can_command": state.can_command(&auth),
         "now": now,
     })))
@@ -127,8 +134,8 @@ fn parse_ms(q: &HashMap<String, String>, key: &str) -> Result<Option<UnixMs>, Ap
         .transpose()
 }
 
-/// `GET /api/reservations?from=ms&until=ms`: this station's reservations (default: from an
-/// hour ago for 14 days).
+/// `GET /api/reservations?from=ms&until=ms`: this station's reservations, of the whole cell
+/// and of each machine, by start (default: from an hour ago for 14 days).
 pub async fn reservations(
     State(state): State<AppState>,
     _auth: Auth,
@@ -137,11 +144,15 @@ pub async fn reservations(
     let now = state.now();
     let from = parse_ms(&q, "from")?.unwrap_or_else(|| now.minus(Duration::from_secs(3600)));
     let until = parse_ms(&q, "until")?.unwrap_or_else(|| now.plus(Duration::from_secs(14 * 24 * 3600)));
-    let list = state.lab.reservations().list(&ReservationFilter {
-        station: Some(state.config.station.clone()),
-        window: Some((from, until)),
-        ..ReservationFilter::default()
-    })?;
+    let mut list = Vec::new();
+    for resource in crate::machines::resources(&state) {
+        list.extend(state.lab.reservations().list(&ReservationFilter {
+            station: Some(resource),
+            window: Some((from, until)),
+            ..ReservationFilter::default()
+        })?);
+    }
+    list.sort_by_key(|r| (r.start, r.id));
     Ok(Json(json!(list)))
 }
 
@@ -156,21 +167,33 @@ pub struct BookBody {
     /// For whom (admins only; default: yourself).
     #[serde(default)]
     pub user: Option<String>,
+    /// Which machine (a group id of `GET /api/groups`); default: the whole cell.
+    #[serde(default)]
+    pub machine: Option<String>,
 }
 
-/// `POST /api/reservations`: books a slot (409 when it overlaps another).
+/// `POST /api/reservations`: books a slot of one machine, or of the whole cell (409 when it
+/// overlaps another slot of that machine, or a whole-cell slot overlaps a machine's).
 pub async fn book(State(state): State<AppState>, Csrf(auth): Csrf, Body(b): Body<BookBody>) -> ApiResult {
     let for_user = b.user.unwrap_or_else(|| auth.session.user.clone());
-    let action = Action::Reserve { station: state.config.station.clone(), for_user: for_user.clone() };
+    let resource = match b.machine {
+        None => state.config.station.clone(),
+        Some(m) if crate::machines::machines(&state).contains(&m) => m,
+        Some(m) => {
+            let known = crate::machines::machines(&state).join(", ");
+            return Err(ApiError::invalid(format!("no machine {m:?} on this station (machines: {known})")));
+        }
+    };
+    let action = Action::Reserve { station: resource.clone(), for_user: for_user.clone() };
     state.check(&auth, &action)?;
-    let r = state.lab.reservations().book(
-        &auth.actor(),
-        &state.config.station,
-        &for_user,
-        UnixMs(b.start),
-        UnixMs(b.end),
-        state.now(),
-    );
+    // One booking at a time: the store checks the overlap of one resource atomically, this
+    // lock the overlap of a machine's slot with the whole cell's.
+    let _booking = state.booking.lock().await;
+    let (start, end) = (UnixMs(b.start), UnixMs(b.end));
+    let r = match crate::machines::conflicts(&state, &resource, start, end)?.into_iter().next() {
+        Some(other) => Err(motus_lab::ReservationError::Overlap(Box::new(other))),
+        None => state.lab.reservations().book(&auth.actor(), &resource, &for_user, start, end, state.now()),
+    };
     let audit = r.as_ref().map(|_| ()).map_err(ToString::to_string);
     if let Err(e) = state.lab.record(&auth.actor(), &action, audit, state.now()) {
         tracing::error!(error = %e, "audit write failed");
@@ -228,8 +251,7 @@ pub async fn alarms(State(state): State<AppState>, _auth: Auth) -> ApiResult {
 
 /// `POST /api/alarms/{id}/ack`.
 pub async fn ack_alarm(State(state): State<AppState>, Path(id): Path<i64>, Csrf(auth): Csrf) -> ApiResult {
-    let action =
-        Action::Command { station: state.config.station.clone(), command: Command::AcknowledgeAlarm { id } };
+    let action = state.command_action(&auth, Command::AcknowledgeAlarm { id });
     state.check(&auth, &action)?;
     let out = state.lab.alarms().acknowledge(id, &auth.session.user, state.now())?;
     let result = match &out {
@@ -327,8 +349,18 @@ pub fn run_cleanups(state: &Inner) {
             return;
         }
     };
-    for c in due.into_iter().filter(|c| c.reservation.station == state.config.station) {
-        state.backend.on_slot_end(&c.reservation.user);
+    let machines = crate::machines::machines(state);
+    for c in due.into_iter() {
+        let r = &c.reservation;
+        if r.station == state.config.station {
+            state.backend.on_slot_end(&r.user);
+        } else if machines.contains(&r.station) {
+            // The user's files go with their last slot (they may hold another machine still).
+            let last = crate::machines::held_now(state, &r.user, now).iter().all(|h| h.id == r.id);
+            state.backend.on_machine_slot_end(&r.station, &r.user, last);
+        } else {
+            continue; // another station's
+        }
         let r = state.lab.reservations().complete_cleanup(&c);
         let entry = AuditEntry {
             time: now,
@@ -357,7 +389,11 @@ pub async fn cleanup_loop(state: AppState) {
         tokio::select! {
             _ = tick.tick() => {
                 let s = Arc::clone(&state);
-                let _ = tokio::task::spawn_blocking(move || run_cleanups(&s)).await;
+                let _ = tokio::task::spawn_blocking(move || {
+                    run_cleanups(&s);
+                    crate::queue::grant_queues(&s);
+                })
+                .await;
             }
             _ = shutdown.changed() => return,
         }

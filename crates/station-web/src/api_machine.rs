@@ -226,11 +226,11 @@ pub async fn group_command(
             _ => None,
         };
         let cmd = Command::Axis { axis: member.clone(), op, demand };
-        state.check(&auth, &Action::Command { station: state.config.station.clone(), command: cmd })?;
+        state.check(&auth, &state.command_action(&auth, cmd))?;
     }
     // Every member was authorised above (denials audited); audit the group command once.
     let command = Command::Axis { axis: format!("group:{id}"), op, demand: None };
-    let audited = Action::Command { station: state.config.station.clone(), command };
+    let audited = Action::Command { station: id.clone(), command };
     let backend = std::sync::Arc::clone(&state.backend);
     state.run_and_record(&auth, &audited, move |c| backend.group_command(&c, &id, action)).await?;
     Ok(ok())
@@ -394,8 +394,10 @@ pub async fn upload_program(
             backend.upload_program(&c, &name, &b.text)
         })
         .await?;
+    // Kept with the slot it was uploaded in (a machine's or the whole cell's): removed with
+    // that slot's clean-up unless exported.
     let meta = ProgramMeta {
-        station: state.config.station.clone(),
+        station: crate::machines::resource_for(&state, &auth.session.user, &Command::Trace, state.now()),
         owner: auth.session.user.clone(),
         kind: ProgramKind::Program,
         name: info.name.clone(),
@@ -481,7 +483,7 @@ pub(crate) async fn authorize_and_run<F>(
 where
     F: FnOnce(crate::backend::Caller) -> Result<(), BackendError> + Send + 'static,
 {
-    let lab_action = Action::Command { station: state.config.station.clone(), command };
+    let lab_action = state.command_action(auth, command);
     if let Err(e) =
         state.lab.authorizer().authorize(&auth.session.user, auth.session.role, &lab_action, state.now())
     {

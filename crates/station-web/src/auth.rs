@@ -139,8 +139,23 @@ impl Inner {
         T: Send + 'static,
         F: FnOnce(Caller) -> Result<T, BackendError> + Send + 'static,
     {
-        let action = Action::Command { station: self.config.station.clone(), command };
+        let action = self.command_action(auth, command);
         self.authorized(auth, &action, f).await
+    }
+
+    /// The lab action of `command` by `auth`, on the reservation a student needs: the
+    /// machine of its axes, the whole cell, or any slot held now for a command on the whole
+    /// station ([`crate::machines::resource_for`]). Admins (any time), viewers (never) and
+    /// the E-stop (everyone's, at any time) need no slot: the station's name, without
+    /// reading a reservation.
+    #[must_use]
+    pub fn command_action(&self, auth: &Auth, command: Command) -> Action {
+        let station = if auth.session.role == Role::Student && !matches!(command, Command::EStop) {
+            crate::machines::resource_for(self, &auth.session.user, &command, self.now())
+        } else {
+            self.config.station.clone()
+        };
+        Action::Command { station, command }
     }
 
     /// [`Inner::command`] for any lab action.
@@ -219,7 +234,7 @@ impl Inner {
             Role::Admin => true,
             Role::Viewer => false,
             Role::Student => {
-                let probe = Action::Command { station: self.config.station.clone(), command: Command::Stop };
+                let probe = self.command_action(auth, Command::Stop);
                 self.lab.authorizer().authorize(&auth.session.user, Role::Student, &probe, self.now()).is_ok()
             }
         }

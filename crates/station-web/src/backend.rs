@@ -221,6 +221,8 @@ pub enum GroupKind {
     Gantry,
     /// Juggler axes.
     Juggler,
+    /// Axes booked and shown together, without a controller of their own.
+    Axes,
 }
 
 /// A group of axes.
@@ -649,6 +651,10 @@ pub trait MachineBackend: Send + Sync {
     /// The slot of `user` ended: remove their programs and traces, bring the machine to a
     /// safe, homed state.
     fn on_slot_end(&self, user: &str);
+    /// The slot of `user` on one machine (`group`) ended: bring that machine to a safe,
+    /// homed state (its program stopped); `last`: the user holds no other slot now, so their
+    /// programs and traces are removed too. The other machines are not touched.
+    fn on_machine_slot_end(&self, group: &str, user: &str, last: bool);
 
     /// The cyclic task classes: cycle time, jitter, overruns, state (none by default).
     fn tasks(&self) -> Vec<TaskView> {

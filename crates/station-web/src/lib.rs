@@ -24,7 +24,9 @@ pub mod camera;
 pub mod clock;
 pub mod error;
 pub mod listener;
+pub mod machines;
 pub mod openapi;
+pub mod queue;
 pub mod server;
 pub mod ws;
 

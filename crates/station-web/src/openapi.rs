@@ -311,12 +311,44 @@ fn paths() -> Value {
     add(
         "/api/reservations",
         "get",
-        op("This station's reservations (query from, until: ms)", None, arr(r("Reservation")), false),
+        op(
+            "This station's reservations, the whole cell's and each machine's (query from, until: ms)",
+            None,
+            arr(r("Reservation")),
+            false,
+        ),
     );
     add(
         "/api/reservations",
         "post",
-        op("Book a slot (409 on overlap)", Some(r("BookRequest")), r("Reservation"), true),
+        op(
+            "Book a slot of one machine (`machine`: a group id) or of the whole cell (409 on overlap: \
+             a machine's slots never overlap each other or a whole-cell slot)",
+            Some(r("BookRequest")),
+            r("Reservation"),
+            true,
+        ),
+    );
+    add("/api/queues", "get", op("Every machine's queue: who waits, in order", None, any.clone(), false));
+    add(
+        "/api/machines/{id}/queue",
+        "post",
+        with_path_param(
+            op(
+                "Join the machine's queue (students for themselves): the first in line gets the machine for \
+                 an instant slot as soon as it is free; answers the place",
+                None,
+                any.clone(),
+                true,
+            ),
+            "id",
+            "string",
+        ),
+    );
+    add(
+        "/api/machines/{id}/queue",
+        "delete",
+        with_path_param(op("Leave the machine's queue", None, any.clone(), true), "id", "string"),
     );
     add(
         "/api/reservations/{id}",
@@ -413,7 +445,7 @@ fn schemas() -> Value {
             "run": num, "from": num, "next": num,
             "points": { "type": "array", "items": { "type": "array", "items": num } } } },
         "BookRequest": { "type": "object", "required": ["start", "end"], "properties": {
-            "start": num, "end": num, "user": s } },
+            "start": num, "end": num, "user": s, "machine": s } },
         "Reservation": { "type": "object", "properties": {
             "id": num, "station": s, "user": s, "start": num, "end": num, "created": num, "ended_by": s, "cleaned": b } },
         "User": { "type": "object", "properties": { "name": s, "role": r("Role"), "created": num, "updated": num } },

@@ -28,8 +28,12 @@ pub struct WebConfig {
     pub station: String,
     /// WebSocket state frames per second (default 20).
     pub ws_rate_hz: f64,
-    /// How often due end-of-slot cleanups are executed (default 1 s).
+    /// How often due end-of-slot cleanups are executed, and free machines given to the first
+    /// student in their queue (default 1 s).
     pub cleanup_interval: Duration,
+    /// How long a slot given from a machine's queue lasts (default 15 min; shortened to the
+    /// machine's next booked slot).
+    pub instant_slot: Duration,
     /// The clock (tests inject an [`crate::clock::OffsetClock`]).
     pub clock: Arc<dyn Clock>,
     /// Longest time from a connection's accept, or from the first byte of its next request,
@@ -60,6 +64,7 @@ impl std::fmt::Debug for WebConfig {
             .field("station", &self.station)
             .field("ws_rate_hz", &self.ws_rate_hz)
             .field("cleanup_interval", &self.cleanup_interval)
+            .field("instant_slot", &self.instant_slot)
             .field("header_read_timeout", &self.header_read_timeout)
             .field("idle_timeout", &self.idle_timeout)
             .field("max_connections", &self.max_connections)
@@ -77,6 +82,7 @@ impl Default for WebConfig {
             station: "station".to_string(),
             ws_rate_hz: 20.0,
             cleanup_interval: Duration::from_secs(1),
+            instant_slot: Duration::from_secs(15 * 60),
             clock: Arc::new(SystemClock),
             header_read_timeout: Duration::from_secs(10),
             idle_timeout: Duration::from_secs(60),
@@ -162,6 +168,10 @@ pub struct Inner {
     pub lab_changed: AtomicBool,
     /// The camera streams open now.
     pub cameras: crate::camera::Streams,
+    /// Held while a reservation is booked (a machine's slots against the whole cell's).
+    pub booking: tokio::sync::Mutex<()>,
+    /// Students waiting for a machine.
+    pub queues: crate::queue::Queues,
 }
 
 impl Inner {
@@ -225,6 +235,8 @@ pub fn router(state: AppState) -> Router {
         .route("/api/groups/:id/camera.mjpg", get(crate::camera::stream))
         .route("/api/reservations", get(api_lab::reservations).post(api_lab::book))
         .route("/api/reservations/:id", delete(api_lab::cancel))
+        .route("/api/queues", get(crate::queue::queues))
+        .route("/api/machines/:id/queue", post(crate::queue::join).delete(crate::queue::leave))
         .route("/api/audit", get(api_lab::audit))
         .route("/api/alarms", get(api_lab::alarms))
         .route("/api/alarms/:id/ack", post(api_lab::ack_alarm))
@@ -276,6 +288,8 @@ pub async fn serve_on(
         shutdown: stop_rx,
         lab_changed: AtomicBool::new(true),
         cameras: crate::camera::Streams::default(),
+        booking: tokio::sync::Mutex::new(()),
+        queues: crate::queue::Queues::default(),
     });
     let broadcaster = tokio::spawn(ws::broadcast(Arc::clone(&state)));
     let sweeper = tokio::spawn(api_lab::cleanup_loop(Arc::clone(&state)));

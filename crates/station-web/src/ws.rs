@@ -243,6 +243,7 @@ struct Broadcaster {
     estop_alarm: Option<bool>,
     alarms: Value,
     holder: Value,
+    slots: Value,
 }
 
 impl Broadcaster {
@@ -305,6 +306,7 @@ impl Broadcaster {
                 .active_at(&state.config.station, state.now())
                 .map(|r| json!(r))
                 .unwrap_or(Value::Null);
+            self.slots = json!(crate::machines::running_slots(state, state.now()));
         }
         self.seq += 1;
         let batch = state.backend.samples_since(self.cursor);
@@ -320,6 +322,7 @@ impl Broadcaster {
             "program": state.backend.program_status(),
             "alarms": self.alarms,
             "slot": self.holder,
+            "slots": self.slots,
             "samples": samples,
             "scene": state.backend.scene(),
         });

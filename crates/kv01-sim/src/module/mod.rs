@@ -270,6 +270,14 @@ impl Module {
         self.switch_was_pressed = pressed.is_some();
     }
 
+    /// Moves the last message `gap` later (the simulator's own stall is not the host's
+    /// silence); a latched time-out stays latched.
+    pub(crate) fn excuse_silence(&mut self, gap: Duration) {
+        if !self.timed_out {
+            self.last_message = self.last_message.map(|t| t + gap);
+        }
+    }
+
     fn check_safety_timeout(&mut self, now: Duration) {
         let Some(last) = self.last_message else { return };
         if !self.timed_out && now.saturating_sub(last) >= millis(self.cm.safety_timeout_ms) {

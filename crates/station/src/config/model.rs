@@ -345,6 +345,9 @@ pub enum GroupKind {
     Gantry,
     /// The juggler (1-8 axes).
     Juggler,
+    /// Axes that form one machine without a controller of their own (1-16 axes: e.g. a
+    /// bench of single-axis modules), booked and shown together.
+    Axes,
 }
 
 impl GroupKind {
@@ -356,6 +359,7 @@ impl GroupKind {
             GroupKind::Arm => "arm",
             GroupKind::Gantry => "gantry",
             GroupKind::Juggler => "juggler",
+            GroupKind::Axes => "axes",
         }
     }
 
@@ -367,6 +371,7 @@ impl GroupKind {
             GroupKind::Arm => (1, 6),
             GroupKind::Gantry => (2, 3),
             GroupKind::Juggler => (1, 8),
+            GroupKind::Axes => (1, 16),
         }
     }
 }
